@@ -1,0 +1,39 @@
+// Paths recorded at the parameters theta0, replayed at any theta (DESIGN.md, "Path replay").
+//
+// A pixel's estimate is  I(theta) = background + sum over terms  constant * prod_k f_theta(v_k),
+// where `constant` holds everything that does not depend on the fitted materials (emission,
+// geometry and cosine terms, 1 / pdf at theta0, Russian-roulette and MIS weights at theta0, the
+// BRDFs of materials that are not fitted, and 1 / spp), and v_k are the term's vertices on fitted
+// materials. A vertex keeps only what f needs: its material slot and log(cos alpha).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "math.h"
+
+namespace phongfit {
+
+struct PathVertex {
+    float logCos;        // log(cos alpha) at the vertex; -infinity where cos(alpha) <= 0
+    std::uint32_t slot;  // index of the fitted material
+};
+
+struct PathTerm {
+    std::uint32_t pixel;        // y * width + x
+    std::uint32_t firstVertex;  // into PathSet::vertices
+    std::uint32_t vertexCount;  // >= 1; terms with no fitted vertex go to `background`
+    Color<float> constant;
+};
+
+struct PathSet {
+    int width = 0, height = 0;
+    int spp = 0;
+    int slots = 0;                        // number of fitted materials
+    std::vector<Color<float>> background;  // per pixel: the part that does not depend on theta
+    std::vector<PathTerm> terms;           // sorted by pixel
+    std::vector<PathVertex> vertices;
+    std::vector<std::uint32_t> pixelStart;  // terms of pixel p are [pixelStart[p], pixelStart[p+1])
+};
+
+}  // namespace phongfit

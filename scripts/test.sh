@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Command 2: install what is missing, build, run the whole test suite.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+"$root/scripts/setup.sh"
+"$root/scripts/build.sh"
+build=${PHONGFIT_BUILD_DIR:-$root/build}
+cd "$build"
+ctest --output-on-failure -j "$(nproc)" "$@"

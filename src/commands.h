@@ -1,0 +1,14 @@
+// Subcommands of the phongfit executable; each module defines its own.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace phongfit {
+
+void addBrdfCommand(CLI::App& app);
+
+inline void addCommands(CLI::App& app) {
+    addBrdfCommand(app);
+}
+
+}  // namespace phongfit

@@ -1,0 +1,72 @@
+// The Modified Phong BRDF (Lafortune & Willems 1994), the one definition shared by the renderer and
+// the fitter:
+//
+//     f(wi, wo) = kd / pi + ks * (n + 2) / (2 pi) * cos^n(alpha)
+//
+// Conventions (as pbrt-v4 and the Phong importance-sampling note): local shading frame, normal on +z;
+// `wo` is given (towards the viewer), `wi` is sampled (towards the light), both point away from the
+// surface; f excludes the foreshortening cos(theta_i); alpha is the angle between wi and the mirror
+// direction of wo, and cos(alpha) is clamped at 0.
+//
+// Templated on the parameter type T (float, double, ceres::Jet) and the direction type D (float,
+// double), so the fitter differentiates exactly the model the renderer samples.
+#pragma once
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "math.h"
+
+namespace phongfit {
+
+template <typename T>
+struct PhongParams {
+    Color<T> kd = Color<T>::Zero();
+    Color<T> ks = Color<T>::Zero();
+    T n = T(0);
+};
+using PhongMaterial = PhongParams<double>;
+
+// Throws Error naming `what` (e.g. "bsdf 'ball' (scene.xml:12)") when a parameter is outside its
+// domain: kd, ks >= 0, kd + ks <= 1 per channel, n >= 0, all finite.
+void validatePhong(const PhongMaterial& m, const std::string& what);
+
+// h = 1 - cos(alpha) = |r - wi|^2 / 2 with r the mirror of wo: precise for tiny alpha, where
+// 1 - dot(r, wi) loses every digit.
+template <typename D>
+D oneMinusCosAlpha(const Vec3<D>& wi, const Vec3<D>& wo) {
+    return (reflectLocal(wo) - wi).squaredNorm() / D(2);
+}
+
+// log(cos alpha), the only geometric quantity the lobe needs; -infinity where cos(alpha) <= 0.
+template <typename D>
+D logCosAlpha(const Vec3<D>& wi, const Vec3<D>& wo) {
+    const D h = oneMinusCosAlpha(wi, wo);
+    return h < D(1) ? std::log1p(-h) : -std::numeric_limits<D>::infinity();
+}
+
+// cos^n(alpha) = exp(n log cos alpha): finite with finite derivatives for n in [0, 1e6] and any alpha
+// (ceres::pow has non-finite derivatives at a zero base).
+template <typename T, typename D>
+T phongPower(const T& n, D logCos) {
+    using std::exp;
+    if (logCos == -std::numeric_limits<D>::infinity()) return T(0);
+    return exp(n * T(logCos));
+}
+
+// f from log(cos alpha); the form the fitter replays recorded vertices with.
+template <typename T, typename D>
+Color<T> phongEvalLogCos(const PhongParams<T>& p, D logCos) {
+    const T specular = (p.n + T(2)) * T(0.5 * kInvPi) * phongPower(p.n, logCos);
+    return p.kd * T(kInvPi) + p.ks * specular;
+}
+
+// f(wi, wo); 0 when either direction is on or below the horizon.
+template <typename T, typename D>
+Color<T> phongEval(const PhongParams<T>& p, const Vec3<D>& wi, const Vec3<D>& wo) {
+    if (!(cosTheta(wi) > D(0)) || !(cosTheta(wo) > D(0))) return Color<T>::Constant(T(0));
+    return phongEvalLogCos(p, logCosAlpha(wi, wo));
+}
+
+}  // namespace phongfit

@@ -1,0 +1,100 @@
+// The scene description: what a Mitsuba 0.6 XML file (the supported subset, DESIGN.md) says, in
+// world space, validated, with the source location of everything a later error may need to name.
+// Nothing here knows about Embree or Ceres.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "math.h"
+#include "phong_brdf.h"
+
+namespace phongfit {
+
+struct SourceLocation {
+    std::string file;
+    int line = 0;
+    std::string str() const { return file + ":" + std::to_string(line); }
+};
+
+// Every supported BSDF is a Modified Phong material: `diffuse` is kd = reflectance, ks = 0.
+struct BsdfDesc {
+    std::string id;    // empty for an anonymous nested bsdf
+    std::string type;  // "diffuse" or "phong", as written in the file
+    PhongMaterial params;
+    SourceLocation loc;
+};
+
+// Triangles in world space (after toWorld). Normals per vertex, or empty for flat shading.
+struct TriangleMesh {
+    std::vector<Vec3f> positions;
+    std::vector<Vec3f> normals;
+    std::vector<std::uint32_t> indices;  // 3 per triangle
+};
+
+struct ShapeDesc {
+    enum class Type { Sphere, Rectangle, Cube, Disk, Obj };
+    Type type = Type::Sphere;
+    // Sphere: world-space center and radius (toWorld applied; a non-uniform scale is an error).
+    Vec3d center = Vec3d::Zero();
+    double radius = 1;
+    // Disk: toWorld of the unit disk in the z = 0 plane, normal +z.
+    Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
+    // Rectangle, cube and obj: world-space triangles (exact: these shapes are flat-faced).
+    TriangleMesh mesh;
+    int bsdf = -1;                         // index into Scene::bsdfs
+    std::optional<Color3> areaRadiance;    // nested area emitter: emits from the front side
+    SourceLocation loc;
+};
+
+struct EmitterDesc {
+    enum class Type { Point, Directional, Constant };
+    Type type = Type::Point;
+    Vec3d position = Vec3d::Zero();       // point
+    Vec3d direction = Vec3d(0, 0, 1);     // directional: unit direction of travel
+    // Point: intensity (W/sr); directional: irradiance on a surface facing the light;
+    // constant: radiance.
+    Color3 value = Color3::Ones();
+    SourceLocation loc;
+};
+
+struct SensorDesc {
+    double fovDegrees = 45;
+    enum class FovAxis { X, Y, Smaller, Larger };
+    FovAxis fovAxis = FovAxis::X;
+    // Camera to world. Camera space as in Mitsuba: looks along +z, +y up, +x to the viewer's left
+    // (so the image's +x is the viewer's right).
+    Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
+    int width = 768, height = 576;
+    int sampleCount = 4;
+    enum class Filter { Box, Gaussian };
+    Filter filter = Filter::Box;
+    double gaussianStddev = 0.5;  // pixels, Mitsuba's default
+};
+
+struct IntegratorDesc {
+    std::string type = "path";  // "path" or "direct"
+    int maxDepth = -1;          // Mitsuba's count: 1 = emitters seen directly; -1 = unbounded
+    int rrDepth = 5;
+};
+
+struct Scene {
+    std::string file;  // the file it came from (absolute or as given)
+    IntegratorDesc integrator;
+    SensorDesc sensor;
+    std::vector<BsdfDesc> bsdfs;
+    std::vector<ShapeDesc> shapes;
+    std::vector<EmitterDesc> emitters;
+
+    // Index of the bsdf with this id, or -1.
+    int findBsdf(const std::string& id) const {
+        for (std::size_t i = 0; i < bsdfs.size(); ++i)
+            if (bsdfs[i].id == id) return int(i);
+        return -1;
+    }
+};
+
+}  // namespace phongfit
