@@ -1,0 +1,156 @@
+#include "lights.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "warp.h"
+
+namespace phongfit {
+namespace {
+
+Vec3d squareToUniformSphere(double u1, double u2) {
+    const double z = 1 - 2 * u1;
+    const double r = std::sqrt(std::max(0.0, 1 - z * z));
+    return sphericalDirection(r, z, 2 * kPi * u2);
+}
+
+// Uniform point on the unit disk (concentric mapping keeps strata intact).
+Vec2d squareToUniformDisk(double u1, double u2) {
+    const double a = 2 * u1 - 1, b = 2 * u2 - 1;
+    if (a == 0 && b == 0) return Vec2d::Zero();
+    double r, phi;
+    if (std::abs(a) > std::abs(b)) {
+        r = a;
+        phi = kPi / 4 * (b / a);
+    } else {
+        r = b;
+        phi = kPi / 2 - kPi / 4 * (a / b);
+    }
+    return Vec2d(r * std::cos(phi), r * std::sin(phi));
+}
+
+Vec3d triangleVertex(const TriangleMesh& m, std::size_t tri, int k) {
+    return m.positions[m.indices[3 * tri + k]].cast<double>();
+}
+
+}  // namespace
+
+LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
+    shapeLight_.assign(scene.shapes.size(), -1);
+    for (const EmitterDesc& e : scene.emitters) {
+        Light l;
+        l.value = e.value;
+        switch (e.type) {
+            case EmitterDesc::Type::Point:
+                l.type = Light::Type::Point;
+                l.position = e.position;
+                break;
+            case EmitterDesc::Type::Directional:
+                l.type = Light::Type::Directional;
+                l.direction = e.direction.normalized();
+                break;
+            case EmitterDesc::Type::Constant:
+                l.type = Light::Type::Environment;
+                environment_ = int(lights_.size());
+                envRadiance_ = e.value;
+                break;
+        }
+        lights_.push_back(std::move(l));
+    }
+    for (std::size_t s = 0; s < scene.shapes.size(); ++s) {
+        const ShapeDesc& shape = scene.shapes[s];
+        if (!shape.areaRadiance) continue;
+        Light l;
+        l.value = *shape.areaRadiance;
+        l.shape = int(s);
+        switch (shape.type) {
+            case ShapeDesc::Type::Sphere:
+                l.type = Light::Type::Sphere;
+                l.area = 4 * kPi * shape.radius * shape.radius;
+                break;
+            case ShapeDesc::Type::Disk: {
+                l.type = Light::Type::Disk;
+                const Eigen::Matrix3d m = shape.toWorld.linear();
+                l.area = kPi * m.col(0).cross(m.col(1)).norm();
+                break;
+            }
+            default: {
+                l.type = Light::Type::Mesh;
+                const TriangleMesh& m = shape.mesh;
+                for (std::size_t t = 0; t < m.indices.size() / 3; ++t) {
+                    const Vec3d v0 = triangleVertex(m, t, 0);
+                    l.area += 0.5 * (triangleVertex(m, t, 1) - v0).cross(triangleVertex(m, t, 2) - v0).norm();
+                    l.triangleCdf.push_back(l.area);
+                }
+                break;
+            }
+        }
+        if (!(l.area > 0)) continue;  // a degenerate emitter cannot emit
+        shapeLight_[s] = int(lights_.size());
+        lights_.push_back(std::move(l));
+    }
+}
+
+std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec3d& u) const {
+    const Light& l = lights_[index];
+    switch (l.type) {
+        case Light::Type::Point: {
+            const Vec3d d = l.position - p;
+            const double dist2 = d.squaredNorm();
+            if (!(dist2 > 0)) return std::nullopt;
+            const double dist = std::sqrt(dist2);
+            return LightSample{d / dist, dist, l.value / dist2, 1, true};
+        }
+        case Light::Type::Directional:
+            return LightSample{-l.direction, std::numeric_limits<double>::infinity(), l.value, 1, true};
+        case Light::Type::Environment:
+            return LightSample{squareToUniformSphere(u.x(), u.y()),
+                               std::numeric_limits<double>::infinity(), l.value, kEnvironmentPdf, false};
+        default:
+            break;
+    }
+    // Area light: a uniform point on the shape, then convert the area density to solid angle.
+    const ShapeDesc& shape = scene_.shapes[l.shape];
+    Vec3d q, n;
+    if (l.type == Light::Type::Sphere) {
+        n = squareToUniformSphere(u.x(), u.y());
+        q = shape.center + shape.radius * n;
+    } else if (l.type == Light::Type::Disk) {
+        const Vec2d d = squareToUniformDisk(u.x(), u.y());
+        q = shape.toWorld * Vec3d(d.x(), d.y(), 0);
+        n = (shape.toWorld.linear().inverse().transpose() * Vec3d::UnitZ()).normalized();
+    } else {
+        const double target = u.z() * l.area;
+        const auto it = std::upper_bound(l.triangleCdf.begin(), l.triangleCdf.end(), target);
+        const std::size_t t = std::min<std::size_t>(it - l.triangleCdf.begin(), l.triangleCdf.size() - 1);
+        const Vec3d v0 = triangleVertex(shape.mesh, t, 0), v1 = triangleVertex(shape.mesh, t, 1),
+                    v2 = triangleVertex(shape.mesh, t, 2);
+        const double su = std::sqrt(u.x());
+        q = (1 - su) * v0 + su * (1 - u.y()) * v1 + su * u.y() * v2;
+        n = (v1 - v0).cross(v2 - v0).normalized();
+    }
+    const Vec3d d = q - p;
+    const double dist2 = d.squaredNorm();
+    if (!(dist2 > 0)) return std::nullopt;
+    const double dist = std::sqrt(dist2);
+    const Vec3d wi = d / dist;
+    const double cosLight = -n.dot(wi);
+    if (!(cosLight > 0)) return std::nullopt;  // back side: emits nothing this way
+    return LightSample{wi, dist, l.value, dist2 / (cosLight * l.area), false};
+}
+
+double LightSet::pdfArea(int index, const Vec3d& p, const Hit& hit) const {
+    const Light& l = lights_[index];
+    const Vec3d d = hit.p - p;
+    const double cosLight = std::abs(hit.ng.dot(d.normalized()));
+    if (!(cosLight > 0)) return 0;
+    return d.squaredNorm() / (cosLight * l.area);
+}
+
+Color3 LightSet::emitted(const Hit& hit, const Vec3d& dir) const {
+    const int index = shapeLight_[hit.shape];
+    if (index < 0 || !(hit.ng.dot(dir) < 0)) return Color3::Zero();
+    return lights_[index].value;
+}
+
+}  // namespace phongfit

@@ -1,0 +1,62 @@
+// The scene's emitters, sampled for next-event estimation: point and directional (delta) lights, a
+// constant environment, and area lights on meshes, spheres and disks (uniform by area; they emit
+// from the front side of their shape).
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "embree_scene.h"
+
+namespace phongfit {
+
+struct LightSample {
+    Vec3d wi;            // unit, from the shading point towards the light
+    double distance;     // to the light point; infinity for directional and environment
+    Color3 radiance;     // arriving radiance (delta lights: irradiance-equivalent, I / d^2 or E)
+    double pdf;          // solid-angle density; 1 for delta lights
+    bool delta;
+};
+
+class LightSet {
+public:
+    LightSet(const Scene& scene, const EmbreeScene& geometry);
+
+    int size() const { return int(lights_.size()); }
+
+    // A sample of light `index` as seen from p, from three uniform numbers.
+    std::optional<LightSample> sample(int index, const Vec3d& p, const Vec3d& u) const;
+
+    // Light index emitting from `shape` (area light), or -1.
+    int lightOfShape(int shape) const { return shapeLight_[shape]; }
+    // Index of the constant environment, or -1.
+    int environment() const { return environment_; }
+    const Color3& environmentRadiance() const { return envRadiance_; }
+
+    // Solid-angle density with which light `index` samples the direction from p to `hit` on it.
+    double pdfArea(int index, const Vec3d& p, const Hit& hit) const;
+    // Solid-angle density of the environment's direction sampling (uniform sphere).
+    static constexpr double kEnvironmentPdf = 0.25 * kInvPi;
+
+    // Emitted radiance leaving `hit` towards -dir (front side only).
+    Color3 emitted(const Hit& hit, const Vec3d& dir) const;
+
+private:
+    struct Light {
+        enum class Type { Point, Directional, Environment, Mesh, Sphere, Disk };
+        Type type = Type::Point;
+        Color3 value = Color3::Zero();  // intensity, irradiance or radiance
+        Vec3d position = Vec3d::Zero(), direction = Vec3d::UnitZ();
+        int shape = -1;
+        std::vector<double> triangleCdf;  // mesh: cumulative area
+        double area = 0;
+    };
+
+    const Scene& scene_;
+    std::vector<Light> lights_;
+    std::vector<int> shapeLight_;
+    int environment_ = -1;
+    Color3 envRadiance_ = Color3::Zero();
+};
+
+}  // namespace phongfit

@@ -1,0 +1,21 @@
+#include "path_integrator.h"
+
+namespace phongfit {
+
+PathIntegrator::PathIntegrator(const Scene& scene, const EmbreeScene& geometry,
+                               const LightSet& lights, std::vector<PhongMaterial> materials,
+                               std::vector<int> slots, const PhongSampler<double>& sampler,
+                               const PhongSampler<double>& fittedSampler,
+                               IntegratorSettings settings)
+    : scene_(scene),
+      geometry_(geometry),
+      lights_(lights),
+      materials_(std::move(materials)),
+      slots_(std::move(slots)),
+      sampler_(sampler),
+      fittedSampler_(fittedSampler),
+      settings_(settings),
+      // Per bounce: lobe choice, 2D direction, roulette, then 3 per light.
+      dimensionsPerBounce_(4 + 3 * std::uint32_t(lights.size())) {}
+
+}  // namespace phongfit

@@ -1,0 +1,60 @@
+// The path tracer: next-event estimation on every light, multiple importance sampling (power
+// heuristic) against the BRDF's own sampler, Russian roulette after rrDepth, Mitsuba's depth count
+// (1 = emitters seen directly, 2 = direct illumination, ...).
+//
+// Contributions go to a sink as `constant * prod f(v)` over the vertices on fitted materials (see
+// path_set.h). When no material is fitted every vertex folds into the constant and the sink just
+// sums radiance: rendering and path recording are the same code.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "embree_scene.h"
+#include "lights.h"
+#include "path_set.h"
+#include "phong_sampler.h"
+#include "rng.h"
+
+namespace phongfit {
+
+struct IntegratorSettings {
+    int maxDepth = -1;  // -1: unbounded
+    int rrDepth = 5;
+    bool mis = true;    // false: area and environment light only through BRDF sampling
+};
+
+class PathIntegrator {
+public:
+    // `materials` per scene bsdf; `slots` per scene bsdf: the fitted slot or -1. Vertices on fitted
+    // materials sample with `fittedSampler`, the others with `sampler`.
+    PathIntegrator(const Scene& scene, const EmbreeScene& geometry, const LightSet& lights,
+                   std::vector<PhongMaterial> materials, std::vector<int> slots,
+                   const PhongSampler<double>& sampler, const PhongSampler<double>& fittedSampler,
+                   IntegratorSettings settings);
+
+    // Random dimensions 0 and 1 are the caller's (the position in the pixel).
+    static constexpr std::uint32_t kFirstDimension = 2;
+
+    // Traces one camera path. sink.add(const Color3& constant, std::span<const PathVertex>) gets every
+    // contribution; `rays` counts the rays traced.
+    template <typename Sink>
+    void trace(const Ray& cameraRay, const CounterRng& rng, std::uint64_t sample, Sink& sink,
+               std::uint64_t& rays) const;
+
+private:
+    const Scene& scene_;
+    const EmbreeScene& geometry_;
+    const LightSet& lights_;
+    std::vector<PhongMaterial> materials_;
+    std::vector<int> slots_;
+    const PhongSampler<double>& sampler_;
+    const PhongSampler<double>& fittedSampler_;
+    IntegratorSettings settings_;
+    std::uint32_t dimensionsPerBounce_;
+};
+
+}  // namespace phongfit
+
+#include "path_integrator_impl.h"

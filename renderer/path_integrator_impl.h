@@ -1,0 +1,118 @@
+// Template body of PathIntegrator::trace; included by path_integrator.h only.
+#pragma once
+
+#include <algorithm>
+
+namespace phongfit {
+
+namespace detail {
+inline double powerHeuristic(double pdfA, double pdfB) {
+    const double a = pdfA * pdfA, b = pdfB * pdfB;
+    return a + b > 0 ? a / (a + b) : 0;
+}
+}  // namespace detail
+
+template <typename Sink>
+void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uint64_t sample,
+                           Sink& sink, std::uint64_t& rays) const {
+    // Fitted vertices of the current path prefix (a fixed small capacity keeps this allocation-free).
+    constexpr int kMaxFittedVertices = 64;
+    PathVertex prefix[kMaxFittedVertices + 1];
+    int prefixSize = 0;
+
+    Color3 constant = Color3::Ones();  // throughput without f at fitted vertices
+    Color3 fittedF = Color3::Ones();   // product of f(theta0) at fitted vertices (for roulette)
+    double bsdfPdf = 0;                // pdf of the direction that led to the current vertex
+    Ray ray = cameraRay;
+    const int maxDepth = settings_.maxDepth;
+
+    for (int depth = 1;; ++depth) {
+        ++rays;
+        const std::optional<Hit> hit = geometry_.intersect(ray);
+        if (!hit) {
+            const int env = lights_.environment();
+            if (env >= 0) {
+                const double w = depth == 1 || !settings_.mis
+                                     ? 1.0
+                                     : detail::powerHeuristic(bsdfPdf, LightSet::kEnvironmentPdf);
+                sink.add(constant * lights_.environmentRadiance() * w,
+                         std::span<const PathVertex>(prefix, prefixSize));
+            }
+            return;
+        }
+        // Emission reached by BRDF sampling (or seen directly), weighted against light sampling.
+        if (lights_.lightOfShape(hit->shape) >= 0) {
+            const Color3 le = lights_.emitted(*hit, ray.dir);
+            if ((le > 0).any()) {
+                double w = 1;
+                if (depth > 1 && settings_.mis)
+                    w = detail::powerHeuristic(
+                        bsdfPdf, lights_.pdfArea(lights_.lightOfShape(hit->shape), ray.origin, *hit));
+                sink.add(constant * le * w, std::span<const PathVertex>(prefix, prefixSize));
+            }
+        }
+        if (maxDepth >= 0 && depth >= maxDepth) return;
+
+        const ShapeDesc& shape = scene_.shapes[hit->shape];
+        const PhongMaterial& m = materials_[shape.bsdf];
+        const int slot = slots_[shape.bsdf];
+        const PhongSampler<double>& sampler = slot >= 0 ? fittedSampler_ : sampler_;
+        const Frame<double> frame(hit->ns);
+        const Vec3d wo = frame.toLocal(-ray.dir);
+        if (!(wo.z() > 0) || !(hit->ng.dot(-ray.dir) > 0)) return;  // one-sided materials
+        const std::uint32_t dim = kFirstDimension + std::uint32_t(depth - 1) * dimensionsPerBounce_;
+
+        // Next-event estimation on every light.
+        for (int l = 0; l < lights_.size(); ++l) {
+            const std::uint32_t d = dim + 4 + 3 * std::uint32_t(l);
+            const auto ls = lights_.sample(
+                l, hit->p, Vec3d(rng.uniform(sample, d), rng.uniform(sample, d + 1), rng.uniform(sample, d + 2)));
+            if (!ls || (!ls->delta && !settings_.mis)) continue;
+            const Vec3d wi = frame.toLocal(ls->wi);
+            if (!(wi.z() > 0) || !(hit->ng.dot(ls->wi) > 0)) continue;
+            Color3 c = constant * ls->radiance * (wi.z() / ls->pdf);
+            if (!ls->delta) c *= detail::powerHeuristic(ls->pdf, sampler.pdf(m, wo, wi));
+            if (slot < 0) c *= phongEval(m, wi, wo);
+            if (!(c > 0).any()) continue;
+            // Stop short of the light's own surface (relative margin: float intersection error).
+            const Vec3d origin = offsetRayOrigin(hit->p, hit->ng, ls->wi);
+            const double reach = std::isfinite(ls->distance)
+                                     ? (hit->p + ls->distance * ls->wi - origin).norm() * (1 - 1e-4)
+                                     : ls->distance;
+            const Ray shadow{origin, ls->wi, reach};
+            ++rays;
+            if (geometry_.occluded(shadow)) continue;
+            if (slot < 0) {
+                sink.add(c, std::span<const PathVertex>(prefix, prefixSize));
+            } else {
+                prefix[prefixSize] = PathVertex{float(logCosAlpha(wi, wo)), std::uint32_t(slot)};
+                sink.add(c, std::span<const PathVertex>(prefix, prefixSize + 1));
+            }
+        }
+
+        // Continue the path by sampling the BRDF.
+        const auto s = sampler.sample(m, wo, rng.uniform(sample, dim),
+                                      Vec2d(rng.uniform(sample, dim + 1), rng.uniform(sample, dim + 2)));
+        if (!s) return;
+        const Vec3d wiWorld = frame.toWorld(s->wi);
+        if (!(hit->ng.dot(wiWorld) > 0)) return;
+        if (slot < 0) {
+            constant *= s->weight;
+        } else {
+            if (prefixSize == kMaxFittedVertices) return;
+            constant *= s->wi.z() / s->pdf;
+            fittedF *= phongEval(m, s->wi, wo);
+            prefix[prefixSize++] = PathVertex{float(logCosAlpha(s->wi, wo)), std::uint32_t(slot)};
+        }
+        bsdfPdf = s->pdf;
+        ray = Ray{offsetRayOrigin(hit->p, hit->ng, wiWorld), wiWorld};
+
+        if (depth + 1 >= settings_.rrDepth) {
+            const double q = std::min(0.95, (constant * fittedF).maxCoeff());
+            if (!(rng.uniform(sample, dim + 3) < q)) return;
+            constant /= q;
+        }
+    }
+}
+
+}  // namespace phongfit

@@ -1,0 +1,103 @@
+// phongfit render SCENE.xml -o OUT.exr ...
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <thread>
+
+#include "atomic_file.h"
+#include "commands.h"
+#include "defines.h"
+#include "error.h"
+#include "image.h"
+#include "interrupt.h"
+#include "phong_sampler.h"
+#include "renderer.h"
+#include "scene_parser.h"
+
+namespace phongfit {
+namespace {
+
+struct RenderArgs {
+    std::string scene, output, png;
+    std::vector<std::string> defines;
+    RenderOptions options;
+};
+
+Image toImage(const RenderResult& r) {
+    Image image(r.width, r.height);
+    image.rgb = r.rgb;
+    return image;
+}
+
+void runRender(const RenderArgs& args) {
+    installInterruptHandler();
+    Renderer renderer(loadScene(args.scene, parseDefines(args.defines)));
+    const RenderResult result = renderer.render(args.options);
+    const Image image = toImage(result);
+    writeExr(image, args.output);
+    if (!args.png.empty()) writePng(image, args.png);
+
+    const RenderStats& s = result.stats;
+    const int threads = args.options.threads > 0 ? args.options.threads
+                                                 : int(std::thread::hardware_concurrency());
+    nlohmann::json sidecar = {
+        {"scene", args.scene},
+        {"defines", parseDefines(args.defines)},
+        {"seed", args.options.seed},
+        {"spp", s.spp},
+        {"samples", s.samples},
+        {"interrupted", s.interrupted},
+        {"sampler", args.options.sampler},
+        {"mis", args.options.mis},
+        {"max_depth", renderer.effectiveMaxDepth(args.options.maxDepth)},
+        {"threads", threads},
+        {"width", result.width},
+        {"height", result.height},
+        {"time_s", s.seconds},
+        {"rays", s.rays},
+        {"mrays_per_s", s.rays / s.seconds / 1e6},
+        {"samples_per_s", s.samples / s.seconds},
+        {"non_finite_samples", s.nonFinite},
+    };
+    writeAtomically(args.output + ".json", [&](const std::filesystem::path& tmp) {
+        std::ofstream(tmp) << sidecar.dump(2) << "\n";
+    });
+
+    fmt::print("rendered {}x{} at {} spp in {:.2f} s: {:.1f} Mrays/s, {:.2f} Msamples/s -> {}\n",
+               result.width, result.height, s.spp, s.seconds, s.rays / s.seconds / 1e6,
+               s.samples / s.seconds / 1e6, args.output);
+    if (s.nonFinite > 0)
+        fmt::print("warning: {} samples had a non-finite value and were left out\n", s.nonFinite);
+    if (s.interrupted)
+        fmt::print("interrupted: the image holds {} of {} samples ({:.1f}%)\n", s.samples,
+                   std::uint64_t(s.spp) * result.width * result.height,
+                   100.0 * s.samples / (double(s.spp) * result.width * result.height));
+}
+
+}  // namespace
+
+void addRenderCommand(CLI::App& app) {
+    auto args = std::make_shared<RenderArgs>();
+    CLI::App* cmd = app.add_subcommand("render", "render a Mitsuba-XML scene to a linear EXR");
+    cmd->add_option("scene", args->scene, "scene file (Mitsuba 0.6 XML subset)")->required();
+    cmd->add_option("-o,--output", args->output, "output EXR")->required();
+    cmd->add_option("--spp", args->options.spp, "samples per pixel (default: the scene's)")
+        ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--seed", args->options.seed, "random seed");
+    cmd->add_option("--threads", args->options.threads, "worker threads (default: all)")
+        ->check(CLI::Range(1, 1024));
+    cmd->add_option("--sampler", args->options.sampler, "Phong sampler")
+        ->check(CLI::IsMember(phongSamplerNames()));
+    cmd->add_option("--max-depth", args->options.maxDepth,
+                    "path depth as in Mitsuba (1 = emitters only, 2 = direct, -1 = unbounded)")
+        ->check(CLI::Range(-1, 1000));
+    cmd->add_flag("!--no-mis", args->options.mis,
+                  "area and environment light only by BRDF sampling (no light sampling, no MIS)");
+    cmd->add_option("-D", args->defines, "override a scene default: name=value");
+    cmd->add_option("--png", args->png, "also write a tone-mapped sRGB PNG preview");
+    cmd->add_flag("--quiet", args->options.quiet, "no progress bar");
+    cmd->callback([args] { runRender(*args); });
+}
+
+}  // namespace phongfit

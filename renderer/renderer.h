@@ -1,0 +1,74 @@
+// Renders a scene description to an image, or records its paths for the fitter. Builds the Embree
+// scene once; tiles run on TBB; every random number is keyed by (seed, pixel, sample, dimension), so
+// an image is bit-identical for a seed whatever the thread count.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "camera.h"
+#include "lights.h"
+#include "path_set.h"
+#include "scene.h"
+
+namespace phongfit {
+
+struct RenderOptions {
+    int spp = 0;           // 0: the scene's sampleCount
+    std::uint64_t seed = 0;
+    int threads = 0;       // 0: all hardware threads
+    std::string sampler = "lafortune";
+    int maxDepth = -2;     // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
+    bool mis = true;
+    bool quiet = false;    // no progress output
+};
+
+struct RenderStats {
+    double seconds = 0;
+    std::uint64_t rays = 0;
+    std::uint64_t samples = 0;  // pixel samples traced
+    int spp = 0;                // requested
+    bool interrupted = false;
+    std::uint64_t nonFinite = 0;  // samples dropped for a non-finite value
+};
+
+struct RenderResult {
+    int width = 0, height = 0;
+    std::vector<float> rgb;       // 3 per pixel, row 0 top: the mean of the pixel's samples
+    std::vector<float> variance;  // 3 per pixel: variance of that mean (sample variance / count)
+    std::vector<std::uint32_t> sampleCount;  // per pixel (less than spp after an interrupt)
+    RenderStats stats;
+};
+
+struct RecordOptions {
+    int spp = 4;
+    std::uint64_t seed = 0;
+    int threads = 0;
+    int maxDepth = -2;
+    std::vector<int> fittedBsdfs;           // scene bsdf indices, in slot order
+    std::vector<PhongMaterial> theta0;      // per slot: the parameters to record at
+    double defensive = 0.2;                 // share of cosine sampling at fitted vertices
+};
+
+class Renderer {
+public:
+    explicit Renderer(Scene scene);
+    ~Renderer();
+
+    const Scene& scene() const { return scene_; }
+    RenderResult render(const RenderOptions& options) const;
+    PathSet record(const RecordOptions& options) const;
+
+    // The depth the options ask for, resolved against the scene's integrator.
+    int effectiveMaxDepth(int requested) const;
+
+private:
+    Scene scene_;
+    std::unique_ptr<EmbreeScene> geometry_;
+    std::unique_ptr<LightSet> lights_;
+    Camera camera_;
+};
+
+}  // namespace phongfit

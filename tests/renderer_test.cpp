@@ -1,0 +1,215 @@
+// Renders checked against closed forms: a Phong sphere under a point light (direct light, every
+// interior pixel box-filtered analytically), and the furnace (a closed emitting diffuse enclosure).
+#include "renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace phongfit {
+namespace {
+
+Eigen::Affine3d lookAt(const Vec3d& origin, const Vec3d& target, const Vec3d& up) {
+    const Vec3d dir = (target - origin).normalized();
+    const Vec3d left = up.cross(dir).normalized();
+    Eigen::Affine3d m = Eigen::Affine3d::Identity();
+    m.linear().col(0) = left;
+    m.linear().col(1) = dir.cross(left);
+    m.linear().col(2) = dir;
+    m.translation() = origin;
+    return m;
+}
+
+// One Phong sphere (radius 1 at the origin) seen from +z, lit by a point light.
+Scene sphereScene(const PhongMaterial& material, int size) {
+    Scene scene;
+    scene.integrator.type = "direct";
+    scene.sensor.fovDegrees = 30;
+    scene.sensor.width = scene.sensor.height = size;
+    scene.sensor.toWorld = lookAt(Vec3d(0, 0, 5), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
+    scene.bsdfs.push_back(BsdfDesc{"sphere", "phong", material, {}});
+    ShapeDesc sphere;
+    sphere.type = ShapeDesc::Type::Sphere;
+    sphere.radius = 1;
+    sphere.bsdf = 0;
+    scene.shapes.push_back(sphere);
+    EmitterDesc light;
+    light.type = EmitterDesc::Type::Point;
+    light.position = Vec3d(2, 3, 4);
+    light.value = Color3(20, 15, 10);
+    scene.emitters.push_back(light);
+    return scene;
+}
+
+// Radiance along a camera ray, written from the formulas in world space (long double), independent of
+// the renderer's local-frame code. NaN where the ray misses the sphere.
+long double analyticRadiance(const Scene& scene, const Ray& ray, int channel) {
+    const PhongMaterial& m = scene.bsdfs[0].params;
+    const Vec3d& o = ray.origin;
+    const Vec3d& d = ray.dir;
+    const long double b = o.dot(d), c = o.squaredNorm() - 1.0L;
+    const long double disc = b * b - c;
+    if (disc < 0) return NAN;
+    const long double t = -b - std::sqrt(disc);
+    const long double px = o.x() + t * d.x(), py = o.y() + t * d.y(), pz = o.z() + t * d.z();
+    const long double n[3] = {px, py, pz};  // unit: the sphere has radius 1 at the origin
+    const Vec3d& l = scene.emitters[0].position;
+    long double wi[3] = {l.x() - px, l.y() - py, l.z() - pz};
+    const long double dist2 = wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2];
+    for (auto& w : wi) w /= std::sqrt(dist2);
+    const long double wo[3] = {-d.x(), -d.y(), -d.z()};
+    const long double cosI = n[0] * wi[0] + n[1] * wi[1] + n[2] * wi[2];
+    const long double cosO = n[0] * wo[0] + n[1] * wo[1] + n[2] * wo[2];
+    if (cosI <= 0 || cosO <= 0) return 0;
+    long double cosAlpha = 0;  // mirror of wo about n, dotted with wi
+    for (int k = 0; k < 3; ++k) cosAlpha += (2 * cosO * n[k] - wo[k]) * wi[k];
+    const long double spec =
+        cosAlpha > 0 ? (m.n + 2) / (2 * M_PIl) * std::pow(cosAlpha, (long double)m.n) : 0;
+    const long double f = m.kd[channel] / M_PIl + m.ks[channel] * spec;
+    return f * cosI * scene.emitters[0].value[channel] / dist2;
+}
+
+struct AnalyticCase {
+    double kd, ks, n;
+    int spp;
+};
+
+// The pixel's box-filtered reference by midpoint quadrature; NaN if any part misses the sphere.
+// Sub-pixel highlights (n = 5000 spans ~0.1 pixel here) get a much finer grid.
+Color<long double> boxFilteredReference(const Scene& scene, const Camera& camera, int x, int y,
+                                        int sub) {
+    Color<long double> sum = Color<long double>::Zero();
+    long double lo = INFINITY, hi = 0;
+    for (int j = 0; j < sub; ++j)
+        for (int i = 0; i < sub; ++i) {
+            const Ray ray = camera.generateRay(x + (i + 0.5) / sub, y + (j + 0.5) / sub);
+            for (int ch = 0; ch < 3; ++ch) {
+                const long double v = analyticRadiance(scene, ray, ch);
+                if (std::isnan(v)) return Color<long double>::Constant(NAN);
+                sum[ch] += v / (sub * sub);
+                if (ch == 0) lo = std::min(lo, v), hi = std::max(hi, v);
+            }
+        }
+    if (sub < 64 && hi > 2 * lo + 1e-3) return boxFilteredReference(scene, camera, x, y, 64);
+    return sum;
+}
+
+class AnalyticSphere : public ::testing::TestWithParam<AnalyticCase> {};
+
+TEST_P(AnalyticSphere, InteriorPixelsMatchTheBoxFilteredClosedForm) {
+    const AnalyticCase& c = GetParam();
+    PhongMaterial m;
+    m.kd = Color3(c.kd, 0.8 * c.kd, 0.6 * c.kd);
+    m.ks = Color3::Constant(c.ks);
+    m.n = c.n;
+    const int size = 48;
+    const Scene scene = sphereScene(m, size);
+    RenderOptions options;
+    options.spp = c.spp;
+    options.quiet = true;
+    const RenderResult r = Renderer(scene).render(options);
+
+    const Camera camera(scene.sensor);
+    long double sumAbsErr = 0, sumRef = 0;
+    int interior = 0;
+    for (int y = 0; y < size; ++y)
+        for (int x = 0; x < size; ++x) {
+            const Color<long double> ref = boxFilteredReference(scene, camera, x, y, 8);
+            if (std::isnan(ref[0])) continue;
+            ++interior;
+            for (int ch = 0; ch < 3; ++ch) {
+                sumAbsErr += std::abs(r.rgb[3 * (y * size + x) + ch] - ref[ch]);
+                sumRef += ref[ch];
+            }
+        }
+    ASSERT_GT(interior, 500);
+    EXPECT_LT(double(sumAbsErr / sumRef), 0.01) << "mean relative error over " << interior << " pixels";
+}
+
+INSTANTIATE_TEST_SUITE_P(Materials, AnalyticSphere,
+                         ::testing::Values(AnalyticCase{0.5, 0.3, 30, 1024},
+                                           AnalyticCase{0.8, 0.0, 1, 256},
+                                           AnalyticCase{0.0, 0.9, 10, 1024},
+                                           AnalyticCase{0.1, 0.5, 300, 8192},
+                                           AnalyticCase{0.2, 0.8, 5000, 16384}));
+
+// A closed box, faces towards the inside, every face emitting Le and reflecting diffusely with albedo
+// rho: radiance is Le / (1 - rho) everywhere.
+Scene furnaceScene(double rho, double le) {
+    Scene scene;
+    scene.integrator.maxDepth = -1;
+    scene.integrator.rrDepth = 5;
+    scene.sensor.fovDegrees = 60;
+    scene.sensor.width = scene.sensor.height = 16;
+    scene.sensor.toWorld = lookAt(Vec3d(0.1, 0.2, 0.3), Vec3d(1, 0.5, -0.7), Vec3d(0, 1, 0));
+    PhongMaterial m;
+    m.kd = Color3(rho, rho, rho);
+    scene.bsdfs.push_back(BsdfDesc{"wall", "diffuse", m, {}});
+    ShapeDesc box;
+    box.type = ShapeDesc::Type::Obj;
+    box.bsdf = 0;
+    box.areaRadiance = Color3::Constant(le);
+    for (int i = 0; i < 8; ++i)
+        box.mesh.positions.emplace_back(i & 1 ? 1.f : -1.f, i & 2 ? 1.f : -1.f, i & 4 ? 1.f : -1.f);
+    // Each face wound clockwise seen from outside, i.e. front side inwards.
+    const std::uint32_t faces[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1},
+                                       {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+    for (const auto& f : faces) {
+        box.mesh.indices.insert(box.mesh.indices.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
+    }
+    scene.shapes.push_back(box);
+    return scene;
+}
+
+TEST(Furnace, RadianceIsEmissionOverOneMinusAlbedo) {
+    const double rho = 0.5, le = 0.7;
+    const Scene scene = furnaceScene(rho, le);
+    // Faces must point inwards for the test to mean anything.
+    RenderOptions options;
+    options.spp = 512;
+    options.quiet = true;
+    const RenderResult r = Renderer(scene).render(options);
+    const double expected = le / (1 - rho);
+    double mean = 0, meanVar = 0;
+    for (std::size_t i = 0; i < r.rgb.size(); ++i) {
+        mean += r.rgb[i];
+        meanVar += r.variance[i];
+    }
+    mean /= r.rgb.size();
+    const double stdErr = std::sqrt(meanVar) / r.rgb.size();
+    EXPECT_NEAR(mean, expected, 5 * stdErr + 1e-4 * expected) << "standard error " << stdErr;
+    for (std::size_t i = 0; i < r.rgb.size(); ++i)
+        ASSERT_NEAR(r.rgb[i], expected, 6 * std::sqrt(r.variance[i]) + 1e-3) << "pixel " << i / 3;
+}
+
+TEST(Determinism, SameSeedSameImageWhateverTheThreadCount) {
+    PhongMaterial m;
+    m.kd = Color3(0.4, 0.5, 0.6);
+    m.ks = Color3::Constant(0.3);
+    m.n = 50;
+    Scene scene = furnaceScene(0.6, 1.0);
+    scene.shapes.push_back(sphereScene(m, 8).shapes[0]);
+    scene.shapes.back().radius = 0.3;
+    scene.shapes.back().center = Vec3d(0.5, 0.3, -0.4);
+    scene.bsdfs.push_back(BsdfDesc{"sphere", "phong", m, {}});
+    scene.shapes.back().bsdf = 1;
+    scene.sensor.width = scene.sensor.height = 40;
+    const Renderer renderer(scene);
+    RenderOptions options;
+    options.spp = 8;
+    options.seed = 7;
+    options.quiet = true;
+    options.threads = 1;
+    const RenderResult one = renderer.render(options);
+    options.threads = 2;
+    const RenderResult two = renderer.render(options);
+    options.threads = 5;
+    const RenderResult five = renderer.render(options);
+    EXPECT_EQ(one.rgb, two.rgb);
+    EXPECT_EQ(one.rgb, five.rgb);
+    options.seed = 8;
+    EXPECT_NE(one.rgb, renderer.render(options).rgb);
+}
+
+}  // namespace
+}  // namespace phongfit
