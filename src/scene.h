@@ -29,6 +29,8 @@ struct BsdfDesc {
 };
 
 // Triangles in world space (after toWorld). Normals per vertex, or empty for flat shading.
+// Triangles wind counter-clockwise seen from the front: cross(p1 - p0, p2 - p0) points outward
+// (cube, obj) or along the emitting side (rectangle: toWorld's image of +z), mirrors included.
 struct TriangleMesh {
     std::vector<Vec3f> positions;
     std::vector<Vec3f> normals;

@@ -1,0 +1,103 @@
+#include "obj_mesh.h"
+
+#include <fmt/format.h>
+#include <tiny_obj_loader.h>
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <utility>
+
+#include "error.h"
+
+namespace phongfit {
+namespace {
+
+std::string firstLine(const std::string& s) {
+    const std::size_t end = s.find('\n');
+    return s.substr(0, end);
+}
+
+}  // namespace
+
+TriangleMesh loadObjMesh(const std::string& path, const std::string& context) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        throw Error(
+            fmt::format("{}: OBJ file '{}' does not exist or is not a file", context, path));
+
+    tinyobj::attrib_t attrib;
+    std::vector<tinyobj::shape_t> shapes;
+    std::vector<tinyobj::material_t> materials;
+    std::string warn, err;
+    const std::string mtlDir = std::filesystem::path(path).parent_path().string() + "/";
+    if (!tinyobj::LoadObj(&attrib, &shapes, &materials, &warn, &err, path.c_str(), mtlDir.c_str(),
+                          /*triangulate=*/true))
+        throw Error(
+            fmt::format("{}: cannot read OBJ file '{}': {}", context, path, firstLine(err)));
+
+    const auto malformed = [&](const std::string& what) {
+        return Error(fmt::format("{}: OBJ file '{}' is malformed: {}", context, path, what));
+    };
+    const int vertexCount = int(attrib.vertices.size() / 3);
+    const int normalCount = int(attrib.normals.size() / 3);
+    for (const tinyobj::real_t x : attrib.vertices)
+        if (!std::isfinite(x)) throw malformed("a vertex coordinate is not finite");
+
+    // tinyobjloader only warns about out-of-range indices (and drops some such faces silently).
+    bool allNormals = true;
+    std::size_t cornerCount = 0;
+    for (const tinyobj::shape_t& shape : shapes) {
+        for (const unsigned char n : shape.mesh.num_face_vertices)
+            if (n != 3)
+                throw malformed(fmt::format("a face has {} vertices after triangulation", n));
+        for (const tinyobj::index_t& idx : shape.mesh.indices) {
+            if (idx.vertex_index < 0 || idx.vertex_index >= vertexCount)
+                throw malformed(
+                    fmt::format("vertex index {} is out of range (the file has {} "
+                                "vertices)",
+                                idx.vertex_index + 1, vertexCount));
+            if (idx.normal_index >= normalCount)
+                throw malformed(
+                    fmt::format("normal index {} is out of range (the file has {} "
+                                "normals)",
+                                idx.normal_index + 1, normalCount));
+            allNormals = allNormals && idx.normal_index >= 0;
+        }
+        cornerCount += shape.mesh.indices.size();
+    }
+    if (warn.find("invalid vertex index") != std::string::npos)
+        throw malformed("a polygon has an out-of-range vertex index");
+    if (cornerCount == 0)
+        throw Error(
+            fmt::format("{}: OBJ file '{}' has no valid triangles (allowed: a mesh with at "
+                        "least one face 'f' of 3 or more vertices)",
+                        context, path));
+
+    TriangleMesh mesh;
+    mesh.indices.reserve(cornerCount);
+    // One output vertex per distinct (position, normal) pair.
+    std::map<std::pair<int, int>, std::uint32_t> remap;
+    for (const tinyobj::shape_t& shape : shapes) {
+        for (const tinyobj::index_t& idx : shape.mesh.indices) {
+            const int ni = allNormals ? idx.normal_index : -1;
+            const auto [it, inserted] =
+                remap.try_emplace({idx.vertex_index, ni}, std::uint32_t(mesh.positions.size()));
+            if (inserted) {
+                const tinyobj::real_t* v = &attrib.vertices[3 * std::size_t(idx.vertex_index)];
+                mesh.positions.emplace_back(v[0], v[1], v[2]);
+                if (allNormals) {
+                    const tinyobj::real_t* n = &attrib.normals[3 * std::size_t(ni)];
+                    const Vec3f normal{n[0], n[1], n[2]};
+                    if (!normal.allFinite() || normal.squaredNorm() == 0)
+                        throw malformed(fmt::format("normal {} is zero or not finite", ni + 1));
+                    mesh.normals.push_back(normal.normalized());
+                }
+            }
+            mesh.indices.push_back(it->second);
+        }
+    }
+    return mesh;
+}
+
+}  // namespace phongfit
