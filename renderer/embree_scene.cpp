@@ -206,16 +206,14 @@ std::optional<Hit> EmbreeScene::intersect(const Ray& ray) const {
         hit.ng = hit.ns = analytic_[hit.shape].normal;
         return hit;
     }
-    // Front side by counter-clockwise winding, (v1 - v0) x (v2 - v0), as OBJ and Mitsuba.
+    // Embree's Ng is (v1 - v0) x (v2 - v0): the front side by counter-clockwise winding, as OBJ
+    // and Mitsuba.
+    hit.ng = Vec3d(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z).normalized();
     const TriangleMesh& mesh = shape.mesh;
-    const std::uint32_t* tri = &mesh.indices[3 * rh.hit.primID];
-    const Vec3d v0 = mesh.positions[tri[0]].cast<double>();
-    hit.ng = (mesh.positions[tri[1]].cast<double>() - v0)
-                 .cross(mesh.positions[tri[2]].cast<double>() - v0)
-                 .normalized();
     if (mesh.normals.empty()) {
         hit.ns = hit.ng;
     } else {
+        const std::uint32_t* tri = &mesh.indices[3 * rh.hit.primID];
         const double u = rh.hit.u, v = rh.hit.v;
         const Vec3d n = (1 - u - v) * mesh.normals[tri[0]].cast<double>() +
                         u * mesh.normals[tri[1]].cast<double>() + v * mesh.normals[tri[2]].cast<double>();

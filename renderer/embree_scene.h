@@ -39,6 +39,9 @@ public:
     std::optional<Hit> intersect(const Ray& ray) const;
     bool occluded(const Ray& ray) const;
 
+    // The committed Embree scene, for measuring raw traversal throughput.
+    RTCScene rtcScene() const { return scene_; }
+
     // Scene bounds (for the environment light's reach and ray epsilons).
     Vec3d boundsMin() const { return boundsMin_; }
     Vec3d boundsMax() const { return boundsMax_; }

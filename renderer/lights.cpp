@@ -79,8 +79,11 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
                 const TriangleMesh& m = shape.mesh;
                 for (std::size_t t = 0; t < m.indices.size() / 3; ++t) {
                     const Vec3d v0 = triangleVertex(m, t, 0);
-                    l.area += 0.5 * (triangleVertex(m, t, 1) - v0).cross(triangleVertex(m, t, 2) - v0).norm();
+                    const Vec3d e1 = triangleVertex(m, t, 1) - v0, e2 = triangleVertex(m, t, 2) - v0;
+                    const Vec3d n = e1.cross(e2);
+                    l.area += 0.5 * n.norm();
                     l.triangleCdf.push_back(l.area);
+                    l.triangles.push_back({v0, e1, e2, n.normalized()});
                 }
                 break;
             }
@@ -123,11 +126,10 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
         const double target = u.z() * l.area;
         const auto it = std::upper_bound(l.triangleCdf.begin(), l.triangleCdf.end(), target);
         const std::size_t t = std::min<std::size_t>(it - l.triangleCdf.begin(), l.triangleCdf.size() - 1);
-        const Vec3d v0 = triangleVertex(shape.mesh, t, 0), v1 = triangleVertex(shape.mesh, t, 1),
-                    v2 = triangleVertex(shape.mesh, t, 2);
+        const auto& [v0, e1, e2, normal] = l.triangles[t];
         const double su = std::sqrt(u.x());
-        q = (1 - su) * v0 + su * (1 - u.y()) * v1 + su * u.y() * v2;
-        n = (v1 - v0).cross(v2 - v0).normalized();
+        q = v0 + su * (1 - u.y()) * e1 + su * u.y() * e2;
+        n = normal;
     }
     const Vec3d d = q - p;
     const double dist2 = d.squaredNorm();

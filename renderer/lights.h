@@ -3,6 +3,7 @@
 // from the front side of their shape).
 #pragma once
 
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -48,7 +49,9 @@ private:
         Color3 value = Color3::Zero();  // intensity, irradiance or radiance
         Vec3d position = Vec3d::Zero(), direction = Vec3d::UnitZ();
         int shape = -1;
-        std::vector<double> triangleCdf;  // mesh: cumulative area
+        // Mesh: per triangle, cumulative area, a vertex, two edges and the unit front normal.
+        std::vector<double> triangleCdf;
+        std::vector<std::array<Vec3d, 4>> triangles;
         double area = 0;
     };
 

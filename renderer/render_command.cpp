@@ -2,6 +2,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
@@ -30,7 +31,17 @@ Image toImage(const RenderResult& r) {
     return image;
 }
 
+// Fails before any work when an output could not be written afterwards.
+void requireOutputDirectory(const std::string& path) {
+    const std::filesystem::path parent = std::filesystem::absolute(path).parent_path();
+    if (!std::filesystem::is_directory(parent))
+        throw Error(fmt::format("cannot write '{}': directory '{}' does not exist", path,
+                                parent.string()));
+}
+
 void runRender(const RenderArgs& args) {
+    requireOutputDirectory(args.output);
+    if (!args.png.empty()) requireOutputDirectory(args.png);
     installInterruptHandler();
     Renderer renderer(loadScene(args.scene, parseDefines(args.defines)));
     const RenderResult result = renderer.render(args.options);

@@ -86,19 +86,21 @@ RenderResult Renderer::render(const RenderOptions& options) const {
     tbb::combinable<std::uint64_t> nonFinite([] { return std::uint64_t(0); });
     const std::vector<Tile> tiles = makeTiles(width, height);
 
-    // Passes of a few samples over the whole image, so an interrupt leaves an even image.
-    const int passes = std::min(spp, 8);
+    // Passes over the whole image, so an interrupt leaves every pixel with samples: the first pass
+    // (one sample per pixel) always completes; later passes grow to spp / 8 and stop at the next
+    // tile on an interrupt. Each pixel is the mean of its own samples.
     Progress progress("render", std::uint64_t(spp) * pixels, "samples", options.quiet);
     const auto start = std::chrono::steady_clock::now();
     bool interrupted = false;
-    for (int pass = 0; pass < passes && !interrupted; ++pass) {
-        const int s0 = int(std::int64_t(spp) * pass / passes);
-        const int s1 = int(std::int64_t(spp) * (pass + 1) / passes);
+    for (int s0 = 0, passSize = 1; s0 < spp && !interrupted;
+         s0 += passSize, passSize = std::min(2 * passSize, std::max(1, spp / 8))) {
+        const int s1 = std::min(spp, s0 + passSize);
+        const bool interruptible = s0 > 0;
         runInArena(options.threads, [&] {
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
                 std::uint64_t& rayCount = rays.local();
                 for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                    if (interruptRequested()) return;
+                    if (interruptible && interruptRequested()) return;
                     const Tile& tile = tiles[t];
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x) {

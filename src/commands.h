@@ -6,9 +6,11 @@
 namespace phongfit {
 
 void addBrdfCommand(CLI::App& app);
+void addRenderCommand(CLI::App& app);
 
 inline void addCommands(CLI::App& app) {
     addBrdfCommand(app);
+    addRenderCommand(app);
 }
 
 }  // namespace phongfit

@@ -12,8 +12,14 @@ int main(int argc, char** argv) {
     phongfit::addCommands(app);
     try {
         app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
+    } catch (const CLI::CallForHelp& e) {
         return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        // One line, like every other error (CLI11 would add a "Run with --help" line).
+        std::fprintf(stderr, "phongfit: error: %s (see phongfit --help)\n", e.what());
+        return e.get_exit_code() != 0 ? e.get_exit_code() : 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "phongfit: error: %s\n", e.what());
         return 1;

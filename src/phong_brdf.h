@@ -15,6 +15,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include "math.h"
 
@@ -66,6 +67,11 @@ Color<T> phongEvalLogCos(const PhongParams<T>& p, D logCos) {
 template <typename T, typename D>
 Color<T> phongEval(const PhongParams<T>& p, const Vec3<D>& wi, const Vec3<D>& wo) {
     if (!(cosTheta(wi) > D(0)) || !(cosTheta(wo) > D(0))) return Color<T>::Constant(T(0));
+    // A purely diffuse material (most of a scene) needs no lobe. Only for plain numbers: a Jet's
+    // derivative with respect to ks is the lobe even where ks = 0.
+    if constexpr (std::is_floating_point_v<T>) {
+        if ((p.ks == T(0)).all()) return p.kd * T(kInvPi);
+    }
     return phongEvalLogCos(p, logCosAlpha(wi, wo));
 }
 

@@ -50,11 +50,13 @@ public:
 
     T unclippedPdf(const PhongParams<T>& m, const Vec3<T>& wo, const Vec3<T>& wi) const override {
         const auto [pd, ps] = lobeProbabilities(m);
+        const T diffuse = pd * cosineHemispherePdf(wi);
+        if (!(ps > T(0))) return diffuse;
         const T h = oneMinusCosAlpha(wi, wo);
         const T specular = warp_ == SpecularWarp::PhongLobe
                                ? phongLobePdf(h, m.n)
                                : uniformCapPdf(h, phongCapHeight(m.n));
-        return pd * cosineHemispherePdf(wi) + ps * specular;
+        return diffuse + ps * specular;
     }
 
     T mass(const PhongParams<T>& m) const override {
