@@ -1,0 +1,66 @@
+#include "fit_report.h"
+
+#include <fmt/format.h>
+
+#include <fstream>
+
+#include "atomic_file.h"
+#include "error.h"
+
+namespace phongfit {
+namespace {
+
+nlohmann::json rgb(const Color3& c) { return nlohmann::json::array({c[0], c[1], c[2]}); }
+
+nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
+                             const std::vector<std::string>& ids) {
+    if (materials.size() != ids.size())
+        throw Error(fmt::format("fit report: {} material ids given for {} fitted materials",
+                                ids.size(), materials.size()));
+    nlohmann::json out = nlohmann::json::object();
+    for (std::size_t s = 0; s < materials.size(); ++s) {
+        const MaterialFit& m = materials[s];
+        out[ids[s]] = {{"kd", rgb(m.kd)},
+                       {"ks", rgb(m.ks)},
+                       {"n", m.n},
+                       {"kd_std", rgb(m.kdStd)},
+                       {"ks_std", rgb(m.ksStd)},
+                       {"n_std", m.nStd},
+                       {"unconstrained", m.unconstrained}};
+    }
+    return out;
+}
+
+}  // namespace
+
+nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& materialIds) {
+    nlohmann::json rounds = nlohmann::json::array();
+    for (const FitRound& r : result.rounds)
+        rounds.push_back({{"round", r.round},
+                          {"time_s", r.timeSeconds},
+                          {"record_time_s", r.recordSeconds},
+                          {"rmse", r.rmse},
+                          {"iterations", r.iterations},
+                          {"time_per_iteration_s", r.secondsPerIteration},
+                          {"materials", materialsJson(r.materials, materialIds)}});
+    return {{"materials", materialsJson(result.materials, materialIds)},
+            {"rmse", result.rmse},
+            {"converged", result.converged},
+            {"rounds", rounds},
+            {"time_s", result.timeSeconds},
+            {"pixels_used", result.pixelsUsed},
+            {"pixels_left_out", result.pixelsLeftOut}};
+}
+
+void writeFitReport(const std::filesystem::path& path, const FitResult& result,
+                    const std::vector<std::string>& materialIds) {
+    const std::string text = toJson(result, materialIds).dump(2) + "\n";
+    writeAtomically(path, [&](const std::filesystem::path& temporary) {
+        std::ofstream out(temporary);
+        out << text;
+        out.close();
+        if (!out) throw Error(fmt::format("{}: could not be written", temporary.string()));
+    });
+}
+
+}  // namespace phongfit

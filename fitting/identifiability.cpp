@@ -1,0 +1,48 @@
+#include "identifiability.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+
+namespace phongfit {
+
+std::vector<int> findUnconstrained(const Eigen::MatrixXd& information, double residualCount,
+                                   double rmsObserved, const std::vector<bool>& held) {
+    const Eigen::Index p = information.rows();
+    std::vector<int> found;
+    // Incremental Cholesky factor of the correlation matrix of the kept parameters.
+    std::vector<Eigen::Index> kept;
+    Eigen::MatrixXd factor = Eigen::MatrixXd::Zero(p, p);
+    for (Eigen::Index j = 0; j < p; ++j) {
+        if (held[j]) continue;
+        const double fjj = std::max(information(j, j), 0.0);
+        if (!(std::sqrt(fjj / residualCount) > kInvisible * rmsObserved)) {
+            found.push_back(int(j));
+            continue;
+        }
+        const Eigen::Index k = Eigen::Index(kept.size());
+        Eigen::VectorXd correlation(k);
+        for (Eigen::Index i = 0; i < k; ++i)
+            correlation[i] =
+                information(kept[i], j) / std::sqrt(information(kept[i], kept[i]) * fjj);
+        const Eigen::VectorXd l =
+            factor.topLeftCorner(k, k).triangularView<Eigen::Lower>().solve(correlation);
+        const double unexplained = 1 - l.squaredNorm();
+        if (!(unexplained > kCollinear)) {
+            found.push_back(int(j));
+            continue;
+        }
+        factor.row(k).head(k) = l.transpose();
+        factor(k, k) = std::sqrt(unexplained);
+        kept.push_back(j);
+    }
+    return found;
+}
+
+bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd) {
+    for (std::size_t g = 0; g < ks.size(); ++g)
+        if (ks[g] > 0 && ks[g] > kLobeSignificance * ksStd[g]) return true;
+    return false;
+}
+
+}  // namespace phongfit

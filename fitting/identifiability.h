@@ -1,0 +1,33 @@
+// Which parameters the images do not constrain, decided from the Gauss-Newton information matrix
+// F = J^T W J of the residuals with respect to the natural parameters (per slot: kd per colour
+// group, ks per colour group, log n; see material_params.h), so the decision does not depend on
+// how the solver parameterizes them.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+namespace phongfit {
+
+// Parameters whose whole effect on the images is below this fraction of the observed intensity:
+// RMS over residuals of dI/dy_j (per unit of kd, ks or log n) <= kInvisible * RMS observation.
+inline constexpr double kInvisible = 1e-6;
+// Parameters whose column of J is this close to the span of the columns before it: the fraction
+// of F_jj that the earlier, kept parameters do not explain (1 / variance inflation factor).
+inline constexpr double kCollinear = 1e-9;
+// The specular lobe is detected when some colour group's ks exceeds this many standard errors;
+// otherwise n is not constrained by the images.
+inline constexpr double kLobeSignificance = 2;
+
+// Indices of the parameters not yet `held` that are invisible or collinear with earlier ones.
+// Parameters are tried in index order (per slot kd, then ks, then log n), so of two parameters the
+// images cannot tell apart, the later one is reported: ks rather than kd, n rather than ks.
+// `residualCount` is the number of scalar residuals, `rmsObserved` the RMS of the weighted
+// observations.
+std::vector<int> findUnconstrained(const Eigen::MatrixXd& information, double residualCount,
+                                   double rmsObserved, const std::vector<bool>& held);
+
+// True when some group's ks is significantly above 0 (ks and ksStd per colour group).
+bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd);
+
+}  // namespace phongfit

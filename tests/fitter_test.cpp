@@ -1,0 +1,672 @@
+#include "fitter.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+
+#include "box_manifold.h"
+#include "error.h"
+#include "fit_report.h"
+#include "identifiability.h"
+#include "material_params.h"
+#include "replay.h"
+#include "uncertainty.h"
+
+namespace phongfit {
+namespace {
+
+// ---- Synthetic scenes: a unit sphere seen orthographically along -z under directional lights.
+// Pixel (x, y) sees the sphere point with normal N = (px, py, sqrt(1 - px^2 - py^2)); a light
+// gives the term E cos(theta_i) with one vertex, log cos alpha of (wi, wo) in N's frame.
+
+struct Light {
+    Vec3d toLight;
+    Color3 irradiance;
+};
+
+struct SphereScene {
+    int size = 40;
+    std::vector<Light> lights;
+    bool twoSlots = false;         // right half of the image is material 1
+    bool interreflection = false;  // a two-vertex term per pixel, coupling the two halves
+    int split = 1;                 // each light term is split into this many equal terms
+};
+
+struct Local {
+    Vec3d wo;
+    Frame<double> frame;
+};
+
+std::optional<Local> sphereAt(double px, double py) {
+    const double r2 = px * px + py * py;
+    if (r2 >= 0.97) return std::nullopt;
+    const Vec3d normal(px, py, std::sqrt(1 - r2));
+    Local l{Vec3d::Zero(), Frame<double>(normal)};
+    l.wo = l.frame.toLocal(Vec3d(0, 0, 1));
+    return l;
+}
+
+PathSet makePaths(const SphereScene& scene) {
+    PathSet ps;
+    ps.width = ps.height = scene.size;
+    ps.spp = 1;
+    ps.slots = scene.twoSlots ? 2 : 1;
+    ps.pixelStart.push_back(0);
+    for (int y = 0; y < scene.size; ++y) {
+        for (int x = 0; x < scene.size; ++x) {
+            const std::uint32_t pixel = std::uint32_t(y * scene.size + x);
+            const double px = (x + 0.5) / scene.size * 2 - 1, py = 1 - (y + 0.5) / scene.size * 2;
+            const auto at = sphereAt(px, py);
+            ps.background.push_back(at ? Color<float>(0.02f, 0.01f, 0.03f)
+                                       : Color<float>(0.1f, 0.1f, 0.1f));
+            if (at) {
+                const std::uint32_t slot = scene.twoSlots && x >= scene.size / 2 ? 1 : 0;
+                const auto addTerm = [&](const Color3& constant, std::vector<PathVertex> vertices) {
+                    PathTerm term;
+                    term.pixel = pixel;
+                    term.firstVertex = std::uint32_t(ps.vertices.size());
+                    term.vertexCount = std::uint32_t(vertices.size());
+                    term.constant = constant.cast<float>();
+                    ps.vertices.insert(ps.vertices.end(), vertices.begin(), vertices.end());
+                    ps.terms.push_back(term);
+                };
+                for (const Light& light : scene.lights) {
+                    const Vec3d wi = at->frame.toLocal(light.toLight.normalized());
+                    if (wi.z() <= 0) continue;
+                    const float logCos = float(logCosAlpha(wi, at->wo));
+                    for (int k = 0; k < scene.split; ++k)
+                        addTerm(light.irradiance * wi.z() / scene.split, {{logCos, slot}});
+                }
+                const auto mirrored = sphereAt(-px, py);
+                const Vec3d wi0 = at->frame.toLocal(scene.lights[0].toLight.normalized());
+                if (scene.interreflection && mirrored && wi0.z() > 0) {
+                    const Vec3d wiOther =
+                        mirrored->frame.toLocal(Vec3d(0.3, 0.5, 0.8).normalized());
+                    if (wiOther.z() > 0) {
+                        const float own = float(logCosAlpha(wi0, at->wo));
+                        const float other = float(logCosAlpha(wiOther, mirrored->wo));
+                        addTerm(0.4 * scene.lights[0].irradiance * wi0.z() * wiOther.z(),
+                                {{own, slot}, {other, scene.twoSlots ? 1 - slot : slot}});
+                    }
+                }
+            }
+            ps.pixelStart.push_back(std::uint32_t(ps.terms.size()));
+        }
+    }
+    return ps;
+}
+
+// The exact prediction at `truth`, plus Gaussian noise of standard deviation `sigma`.
+Observation observe(const PathSet& ps, const std::vector<PhongMaterial>& truth, double sigma = 0,
+                    unsigned seed = 7) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> noise(0, sigma > 0 ? sigma : 1);
+    Observation obs;
+    obs.width = ps.width;
+    obs.height = ps.height;
+    for (int p = 0; p < ps.width * ps.height; ++p) {
+        const Color3 value = replayPixel(ps, p, truth.data());
+        for (int c = 0; c < 3; ++c)
+            obs.rgb.push_back(float(value[c] + (sigma > 0 ? noise(rng) : 0)));
+    }
+    return obs;
+}
+
+PhongMaterial material(const Color3& kd, const Color3& ks, double n) {
+    PhongMaterial m;
+    m.kd = kd;
+    m.ks = ks;
+    m.n = n;
+    return m;
+}
+
+SphereScene threeLights() {
+    SphereScene scene;
+    scene.lights = {{Vec3d(0.3, 0.4, 1), Color3(3, 3, 3)},
+                    {Vec3d(-0.8, 0.1, 0.6), Color3(1.5, 1.5, 1.5)},
+                    {Vec3d(0.2, -0.9, 0.4), Color3(1, 1, 1)}};
+    return scene;
+}
+
+const PhongMaterial kTruth = material(Color3(0.5, 0.35, 0.2), Color3(0.3, 0.4, 0.5), 60);
+
+void expectFinite(const MaterialFit& m) {
+    EXPECT_TRUE(m.kd.allFinite() && m.ks.allFinite() && std::isfinite(m.n));
+    EXPECT_TRUE(m.kdStd.allFinite() && m.ksStd.allFinite() && std::isfinite(m.nStd));
+    EXPECT_TRUE((m.kdStd >= 0).all() && (m.ksStd >= 0).all() && m.nStd >= 0);
+    EXPECT_NO_THROW(validatePhong(m.material(), "fitted material"));
+}
+
+void expectFinite(const FitResult& r) {
+    for (const MaterialFit& m : r.materials) expectFinite(m);
+    for (const FitRound& round : r.rounds) {
+        EXPECT_TRUE(std::isfinite(round.rmse) && std::isfinite(round.timeSeconds));
+        for (const MaterialFit& m : round.materials) expectFinite(m);
+    }
+    EXPECT_TRUE(std::isfinite(r.rmse));
+}
+
+void expectRecovered(const MaterialFit& fit, const PhongMaterial& truth, double relative) {
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(fit.kd[c], truth.kd[c], relative * std::max(truth.kd[c], 0.01)) << "kd " << c;
+        EXPECT_NEAR(fit.ks[c], truth.ks[c], relative * std::max(truth.ks[c], 0.01)) << "ks " << c;
+    }
+    EXPECT_NEAR(fit.n, truth.n, relative * truth.n);
+}
+
+bool contains(const std::vector<std::string>& names, const std::string& name) {
+    return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+// ---- Parameterization
+
+TEST(MaterialParams, EveryPointOfTheBoxConserves) {
+    const HeldParams free;
+    for (double u : {0.0, 0.3, 1.0})
+        for (double ks : {0.0, 0.6, 1.0}) {
+            const double x[3] = {u, ks, std::log(5.0)};
+            const PhongMaterial m = toPhong<kGreyBlock>(x, free);
+            EXPECT_NO_THROW(validatePhong(m, "box point"));
+            EXPECT_NEAR(m.kd[0] + m.ks[0], ks + u * (1 - ks), 1e-15);
+        }
+}
+
+TEST(MaterialParams, RoundTripsAndHoldsDiffuse) {
+    const PhongMaterial m = material(Color3(0.5, 0.0, 0.3), Color3(0.5, 0.4, 0.0), 250);
+    for (bool holdKd : {false, true}) {
+        HeldParams held;
+        held.kd[0] = holdKd;
+        double x[7];
+        toInternal<kRgbBlock>(naturalFromPhong<kRgbBlock>(m).data(), held, x);
+        const PhongMaterial back = toPhong<kRgbBlock>(x, held);
+        EXPECT_LT((back.kd - m.kd).abs().maxCoeff(), 1e-15);
+        EXPECT_LT((back.ks - m.ks).abs().maxCoeff(), 1e-15);
+        EXPECT_NEAR(back.n, 250, 1e-9);
+        double lower[7], upper[7];
+        internalBounds<kRgbBlock>(held, x, lower, upper);
+        EXPECT_DOUBLE_EQ(upper[3], holdKd ? 0.5 : 1.0);  // a held kd leaves ks [0, 1 - kd]
+    }
+}
+
+TEST(MaterialParams, NaturalJacobianMatchesCentralDifferences) {
+    const double x[7] = {0.2, 0.7, 0.5, 0.3, 0.1, 0.9, std::log(40.0)};
+    HeldParams held;
+    held.kd[2] = true;
+    const Eigen::Matrix<double, 7, 7> d = naturalJacobian<kRgbBlock>(x, held);
+    for (int j = 0; j < 7; ++j) {
+        double plus[7], minus[7], yPlus[7], yMinus[7];
+        std::copy(x, x + 7, plus);
+        std::copy(x, x + 7, minus);
+        plus[j] += 1e-6;
+        minus[j] -= 1e-6;
+        toNatural<kRgbBlock>(plus, held, yPlus);
+        toNatural<kRgbBlock>(minus, held, yMinus);
+        for (int i = 0; i < 7; ++i) EXPECT_NEAR(d(i, j), (yPlus[i] - yMinus[i]) / 2e-6, 1e-8);
+    }
+    EXPECT_EQ(d(2, 5), 0.0);  // a held kd does not move with ks
+    EXPECT_EQ(d(2, 2), 1.0);
+}
+
+TEST(BoxManifold, ClampsFreeCoordinatesAndKeepsHeldOnes) {
+    const BoxManifold box({0, 0, -1}, {1, 0.5, 1}, {false, true, false});
+    EXPECT_EQ(box.AmbientSize(), 3);
+    EXPECT_EQ(box.TangentSize(), 2);
+    const double x[3] = {0.4, 0.3, 0.0}, delta[2] = {0.9, -0.2};
+    double moved[3];
+    ASSERT_TRUE(box.Plus(x, delta, moved));
+    EXPECT_EQ(moved[0], 1.0);  // clamped at the upper bound
+    EXPECT_EQ(moved[1], 0.3);  // held
+    EXPECT_DOUBLE_EQ(moved[2], -0.2);
+    double jacobian[6];
+    ASSERT_TRUE(box.PlusJacobian(x, jacobian));
+    EXPECT_EQ(std::vector<double>(jacobian, jacobian + 6), (std::vector<double>{1, 0, 0, 0, 0, 1}));
+    const double ambient[6] = {1, 2, 3, 4, 5, 6};  // 2 rows
+    double tangent[4];
+    ASSERT_TRUE(box.RightMultiplyByPlusJacobian(x, 2, ambient, tangent));
+    EXPECT_EQ(std::vector<double>(tangent, tangent + 4), (std::vector<double>{1, 3, 4, 6}));
+    double difference[2];
+    ASSERT_TRUE(box.Minus(moved, x, difference));
+    EXPECT_DOUBLE_EQ(difference[0], 0.6);
+    EXPECT_DOUBLE_EQ(difference[1], -0.2);
+}
+
+// ---- Identifiability and uncertainty on given information matrices
+
+TEST(Identifiability, FindsInvisibleAndCollinearParameters) {
+    // Columns of J: a, b, 0 (invisible), a + 2b (collinear with the first two), c.
+    Eigen::MatrixXd j(6, 5);
+    j << 1, 0, 0, 1, 0,  //
+        0, 1, 0, 2, 0,   //
+        1, 1, 0, 3, 1,   //
+        0, 0, 0, 0, 2,   //
+        2, 0, 0, 2, 0,   //
+        0, 3, 0, 6, 1;
+    const Eigen::MatrixXd f = j.transpose() * j;
+    std::vector<bool> held(5, false);
+    EXPECT_EQ(findUnconstrained(f, 6, 1.0, held), (std::vector<int>{2, 3}));
+    held[0] = true;  // without the first column, the fourth is no longer in the span
+    EXPECT_EQ(findUnconstrained(f, 6, 1.0, held), (std::vector<int>{2}));
+    // Relative to a very bright image every column is invisible.
+    EXPECT_EQ(findUnconstrained(f, 6, 1e8, held).size(), 4u);
+    EXPECT_TRUE(lobeDetected({0.0, 0.3}, {0.1, 0.1}));
+    EXPECT_FALSE(lobeDetected({0.0, 0.15}, {0.1, 0.1}));
+    EXPECT_FALSE(lobeDetected({}, {}));
+}
+
+TEST(Uncertainty, SandwichEqualsClassicUnderEqualNoise) {
+    Eigen::MatrixXd j(5, 3);
+    j << 1, 0.5, 0, 0, 1, 2, 1, 1, 1, 3, 0, 1, 0.2, 0.1, 4;
+    const Eigen::MatrixXd f = j.transpose() * j;
+    const double sigma2 = 0.04;
+    // Scores whose expectation is sigma^2 F, as for equal noise on every residual.
+    const std::vector<double> v = sandwichVariances(f, sigma2 * f, {false, false, false});
+    const Eigen::MatrixXd classic = sigma2 * f.inverse();
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(v[i], classic(i, i), 1e-12);
+    const std::vector<double> held = sandwichVariances(f, sigma2 * f, {false, true, false});
+    EXPECT_EQ(held[1], 0.0);
+    EXPECT_GT(held[0], 0.0);
+}
+
+// ---- Recovery
+
+TEST(Fitter, RecoversFromFarStartOnExactData) {
+    const PathSet ps = makePaths(threeLights());
+    const Observation obs = observe(ps, {kTruth});
+    for (double nStart : {6000.0, 0.6}) {
+        const PhongMaterial start = material(kTruth.ks, kTruth.kd, nStart);  // kd and ks swapped
+        const FitResult r = fitPathSets({obs}, {ps}, {start});
+        expectFinite(r);
+        ASSERT_EQ(r.materials.size(), 1u);
+        expectRecovered(r.materials[0], kTruth, 1e-3);
+        EXPECT_TRUE(r.materials[0].unconstrained.empty());
+        EXPECT_LT(r.rmse, 1e-5);
+        EXPECT_GT(r.rounds.at(0).iterations, 0);
+    }
+}
+
+TEST(Fitter, NoisyDataWithinThreeStandardErrors) {
+    const PathSet ps = makePaths(threeLights());
+    const Observation obs = observe(ps, {kTruth}, 0.01, 11);
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    const FitResult r = fitPathSets({obs}, {ps}, {start});
+    expectFinite(r);
+    const MaterialFit& m = r.materials[0];
+    EXPECT_TRUE(m.unconstrained.empty());
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_GT(m.kdStd[c], 0);
+        EXPECT_GT(m.ksStd[c], 0);
+        EXPECT_LT(std::abs(m.kd[c] - kTruth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.ks[c] - kTruth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
+        EXPECT_LT(m.kdStd[c], 0.02);
+    }
+    EXPECT_GT(m.nStd, 0);
+    EXPECT_LT(std::abs(m.n - kTruth.n), 3 * m.nStd);
+    EXPECT_NEAR(r.rmse, 0.01, 0.001);
+}
+
+TEST(Fitter, GreyModeSharesKdAndKsAcrossChannels) {
+    SphereScene scene = threeLights();
+    scene.lights[0].irradiance = Color3(3, 2.4, 1.8);  // coloured light, grey material
+    const PathSet ps = makePaths(scene);
+    const PhongMaterial truth = material(Color3::Constant(0.45), Color3::Constant(0.25), 120);
+    FitOptions options;
+    options.grey = true;
+    const FitResult r =
+        fitPathSets({observe(ps, {truth})}, {ps},
+                    {material(Color3::Constant(0.2), Color3::Constant(0.6), 5)}, options);
+    expectFinite(r);
+    const MaterialFit& m = r.materials[0];
+    expectRecovered(m, truth, 1e-3);
+    EXPECT_EQ(m.kd[0], m.kd[2]);
+    EXPECT_EQ(m.ks[1], m.ks[2]);
+    EXPECT_EQ(m.kdStd[0], m.kdStd[1]);
+}
+
+TEST(Fitter, RecoversEnergyConservingBoundary) {
+    const PathSet ps = makePaths(threeLights());
+    const PhongMaterial truth = material(Color3(0.3, 0.6, 0.1), Color3(0.7, 0.4, 0.9), 25);
+    const FitResult r = fitPathSets({observe(ps, {truth})}, {ps},
+                                    {material(Color3::Constant(0.3), Color3::Constant(0.3), 200)});
+    expectFinite(r);
+    expectRecovered(r.materials[0], truth, 1e-3);
+    EXPECT_TRUE(((r.materials[0].kd + r.materials[0].ks) <= 1).all());
+}
+
+TEST(Fitter, WithoutSpecularTheExponentIsUnconstrainedAndHeld) {
+    const PathSet ps = makePaths(threeLights());
+    const PhongMaterial truth = material(Color3(0.6, 0.5, 0.4), Color3::Zero(), 10);
+    const PhongMaterial start = material(Color3(0.2, 0.2, 0.2), Color3(0.3, 0.3, 0.3), 50);
+    for (double sigma : {0.0, 0.01}) {
+        const FitResult r = fitPathSets({observe(ps, {truth}, sigma)}, {ps}, {start});
+        expectFinite(r);
+        const MaterialFit& m = r.materials[0];
+        EXPECT_EQ(m.unconstrained, std::vector<std::string>{"n"}) << "sigma " << sigma;
+        EXPECT_EQ(m.n, 50.0);
+        EXPECT_EQ(m.nStd, 0.0);
+        for (int c = 0; c < 3; ++c) {
+            if (sigma == 0) {
+                EXPECT_NEAR(m.kd[c], truth.kd[c], 1e-3 * truth.kd[c]);
+                EXPECT_LT(m.ks[c], 1e-6);
+            } else {
+                EXPECT_LT(std::abs(m.kd[c] - truth.kd[c]), 3 * m.kdStd[c] + 1e-9);
+            }
+        }
+    }
+}
+
+TEST(Fitter, LobeThatReachesNoPixelLeavesSpecularUnconstrained) {
+    const SphereScene scene = threeLights();
+    const PathSet ps = makePaths(scene);
+    // The lobes at n = 3e5 and 1e6 are invisible only if no vertex is near their peak.
+    for (const PathVertex& v : ps.vertices) {
+        ASSERT_LT(phongPower(3e5, v.logCos) * (3e5 + 2) / (2 * kPi), 1e-12);
+    }
+    const PhongMaterial truth = material(Color3(0.5, 0.4, 0.3), Color3(0.3, 0.3, 0.3), 1e6);
+    const PhongMaterial start = material(Color3(0.2, 0.2, 0.2), Color3(0.2, 0.1, 0.2), 3e5);
+    const FitResult r = fitPathSets({observe(ps, {truth})}, {ps}, {start});
+    expectFinite(r);
+    const MaterialFit& m = r.materials[0];
+    EXPECT_TRUE(contains(m.unconstrained, "ks"));
+    EXPECT_TRUE(contains(m.unconstrained, "n"));
+    EXPECT_FALSE(contains(m.unconstrained, "kd"));
+    EXPECT_EQ(m.n, 3e5);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(m.ks[c], start.ks[c], 1e-15);
+        EXPECT_EQ(m.ksStd[c], 0.0);
+        EXPECT_NEAR(m.kd[c], truth.kd[c], 1e-3 * truth.kd[c]);
+        EXPECT_GT(m.kdStd[c], 0.0);
+    }
+}
+
+TEST(Fitter, ChannelNoLightReachesIsUnconstrainedPerChannel) {
+    SphereScene scene = threeLights();
+    for (Light& light : scene.lights) light.irradiance[2] = 0;
+    const PathSet ps = makePaths(scene);
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    const FitResult r = fitPathSets({observe(ps, {kTruth})}, {ps}, {start});
+    expectFinite(r);
+    const MaterialFit& m = r.materials[0];
+    EXPECT_EQ(m.unconstrained, (std::vector<std::string>{"kd.b", "ks.b"}));
+    EXPECT_EQ(m.kd[2], start.kd[2]);
+    EXPECT_EQ(m.ks[2], start.ks[2]);
+    EXPECT_EQ(m.kdStd[2], 0.0);
+    for (int c = 0; c < 2; ++c) {
+        EXPECT_NEAR(m.kd[c], kTruth.kd[c], 1e-3 * kTruth.kd[c]);
+        EXPECT_NEAR(m.ks[c], kTruth.ks[c], 1e-3 * kTruth.ks[c]);
+    }
+    EXPECT_NEAR(m.n, kTruth.n, 1e-3 * kTruth.n);
+}
+
+TEST(Fitter, IgnoresMaskedAndNonFinitePixels) {
+    const PathSet ps = makePaths(threeLights());
+    const Observation clean = observe(ps, {kTruth});
+    Observation garbage = clean;
+    const int pixels = ps.width * ps.height;
+    garbage.valid.assign(pixels, 1);
+    int masked = 0;
+    for (int p = 0; p < pixels; p += 7) {
+        garbage.valid[p] = 0;
+        garbage.rgb[3 * p] = std::numeric_limits<float>::quiet_NaN();
+        garbage.rgb[3 * p + 1] = 1e30f;
+        garbage.rgb[3 * p + 2] = -5;
+        ++masked;
+    }
+    // A valid pixel with a non-finite value is left out too.
+    const int nonFinitePixel = 20 * ps.width + 21;
+    garbage.rgb[3 * nonFinitePixel] = std::numeric_limits<float>::infinity();
+    Observation maskedClean = clean;
+    maskedClean.valid = garbage.valid;
+    maskedClean.valid[nonFinitePixel] = 0;
+
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    const FitResult r = fitPathSets({garbage}, {ps}, {start});
+    const FitResult reference = fitPathSets({maskedClean}, {ps}, {start});
+    expectFinite(r);
+    expectRecovered(r.materials[0], kTruth, 1e-3);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(r.materials[0].kd[c], reference.materials[0].kd[c], 1e-9);
+        EXPECT_NEAR(r.materials[0].ks[c], reference.materials[0].ks[c], 1e-9);
+    }
+    EXPECT_EQ(r.pixelsLeftOut.at("masked"), std::size_t(masked));
+    EXPECT_EQ(r.pixelsLeftOut.at("non_finite"), 1u);
+    EXPECT_EQ(r.pixelsUsed + r.pixelsLeftOut.at("masked") + r.pixelsLeftOut.at("non_finite") +
+                  r.pixelsLeftOut.at("no_fitted_material"),
+              std::size_t(pixels));
+    EXPECT_EQ(r.pixelsUsed, reference.pixelsUsed);
+}
+
+TEST(Fitter, RobustLossResistsOutliers) {
+    const PathSet ps = makePaths(threeLights());
+    Observation obs = observe(ps, {kTruth});
+    for (int p = 3; p < ps.width * ps.height; p += 23)
+        for (int c = 0; c < 3; ++c) obs.rgb[3 * p + c] += 2.0f;  // e.g. hot pixels
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    FitOptions cauchy;
+    cauchy.loss = parseLoss("cauchy");
+    cauchy.lossScale = 0.02;
+    const FitResult robust = fitPathSets({obs}, {ps}, {start}, cauchy);
+    const FitResult plain = fitPathSets({obs}, {ps}, {start});
+    expectFinite(robust);
+    expectRecovered(robust.materials[0], kTruth, 1e-2);
+    EXPECT_GT(std::abs(plain.materials[0].kd[2] - kTruth.kd[2]),
+              10 * std::abs(robust.materials[0].kd[2] - kTruth.kd[2]));
+    EXPECT_THROW(parseLoss("l1"), Error);
+}
+
+TEST(Fitter, TwoMaterialsWithInterreflection) {
+    SphereScene scene = threeLights();
+    scene.twoSlots = true;
+    scene.interreflection = true;
+    const PathSet ps = makePaths(scene);
+    const auto twoVertexTerms = std::count_if(ps.terms.begin(), ps.terms.end(),
+                                              [](const PathTerm& t) { return t.vertexCount == 2; });
+    ASSERT_GT(twoVertexTerms, 200);
+    const std::vector<PhongMaterial> truth = {
+        kTruth, material(Color3(0.1, 0.2, 0.6), Color3(0.6, 0.5, 0.2), 300)};
+    const std::vector<PhongMaterial> start = {
+        material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20),
+        material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20)};
+    const FitResult r = fitPathSets({observe(ps, truth)}, {ps}, start);
+    expectFinite(r);
+    ASSERT_EQ(r.materials.size(), 2u);
+    for (int s = 0; s < 2; ++s) {
+        expectRecovered(r.materials[s], truth[s], 1e-3);
+        EXPECT_TRUE(r.materials[s].unconstrained.empty());
+    }
+}
+
+TEST(Fitter, ViewsAreFittedJointly) {
+    // View A: the highlight masked out, so it alone cannot tell n. View B: another light, only
+    // the highlight and its surroundings kept.
+    SphereScene sceneA = threeLights();
+    sceneA.lights.resize(1);
+    SphereScene sceneB = sceneA;
+    sceneB.lights[0].toLight = Vec3d(-0.5, -0.3, 1);
+    const PathSet a = makePaths(sceneA), b = makePaths(sceneB);
+    Observation obsA = observe(a, {kTruth}), obsB = observe(b, {kTruth});
+    PhongMaterial diffuseOnly = kTruth;
+    diffuseOnly.ks.setZero();
+    const auto lobeVisible = [&](const PathSet& ps, int p) {
+        const Color3 all = replayPixel(ps, p, &kTruth), diffuse = replayPixel(ps, p, &diffuseOnly);
+        return (all - diffuse).maxCoeff() > 1e-12 * all.maxCoeff();
+    };
+    obsA.valid.assign(a.width * a.height, 1);
+    obsB.valid.assign(b.width * b.height, 1);
+    for (int p = 0; p < a.width * a.height; ++p) {
+        obsA.valid[p] = !lobeVisible(a, p);
+        obsB.valid[p] = lobeVisible(b, p);
+    }
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    const FitResult aloneA = fitPathSets({obsA}, {a}, {start});
+    EXPECT_TRUE(contains(aloneA.materials[0].unconstrained, "n"));
+    const FitResult joint = fitPathSets({obsA, obsB}, {a, b}, {start});
+    expectFinite(joint);
+    expectRecovered(joint.materials[0], kTruth, 1e-3);
+    EXPECT_TRUE(joint.materials[0].unconstrained.empty());
+    const FitResult aloneB = fitPathSets({obsB}, {b}, {start});
+    EXPECT_EQ(joint.pixelsUsed, aloneA.pixelsUsed + aloneB.pixelsUsed);
+}
+
+TEST(Fitter, RoundsRecordAtTheCurrentEstimateAndStopWhenConverged) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    std::vector<std::pair<int, PhongMaterial>> calls;
+    // Each round records differently (terms split in round + 1 parts), the same model.
+    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0, int round) {
+        EXPECT_EQ(view, 0);
+        calls.emplace_back(round, theta0.at(0));
+        SphereScene s = scene;
+        s.split = round + 1;
+        return makePaths(s);
+    };
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    FitOptions options;
+    options.maxRounds = 5;
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    expectFinite(r);
+    EXPECT_TRUE(r.converged);
+    ASSERT_EQ(r.rounds.size(), 2u);
+    ASSERT_EQ(calls.size(), 2u);
+    EXPECT_EQ(calls[0].first, 0);
+    EXPECT_EQ(calls[1].first, 1);
+    EXPECT_EQ(calls[0].second.kd[0], start.kd[0]);
+    EXPECT_EQ(calls[0].second.n, start.n);
+    // Round 1 records at round 0's solution.
+    EXPECT_EQ(calls[1].second.kd[1], r.rounds[0].materials[0].kd[1]);
+    EXPECT_EQ(calls[1].second.n, r.rounds[0].materials[0].n);
+    expectRecovered(r.materials[0], kTruth, 1e-3);
+    for (const FitRound& round : r.rounds) {
+        EXPECT_GT(round.timeSeconds, 0);
+        EXPECT_GE(round.timeSeconds, round.recordSeconds);
+        EXPECT_GT(round.secondsPerIteration, 0);
+    }
+    EXPECT_EQ(r.rounds[1].round, 1);
+    EXPECT_GE(r.timeSeconds, r.rounds[0].timeSeconds + r.rounds[1].timeSeconds);
+
+    // Without convergence the loop stops at maxRounds.
+    options.maxRounds = 1;
+    const FitResult one = fitMaterials({obs}, record, {start}, options);
+    EXPECT_FALSE(one.converged);
+    EXPECT_EQ(one.rounds.size(), 1u);
+}
+
+TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    // Each round's path set is an unbiased but noisy estimate: constants times 1 + 10% noise.
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int round) {
+        PathSet ps = makePaths(scene);
+        std::mt19937 rng(100 + round);
+        std::normal_distribution<float> noise(0, 0.1f);
+        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        return ps;
+    };
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    FitOptions options;
+    options.maxRounds = 8;
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    expectFinite(r);
+    EXPECT_TRUE(r.converged);
+    EXPECT_GE(r.rounds.size(), 2u);
+    EXPECT_LT(r.rounds.size(), 8u);
+    const MaterialFit& m = r.materials[0];
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_LT(std::abs(m.kd[c] - kTruth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.ks[c] - kTruth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
+    }
+    EXPECT_LT(std::abs(m.n - kTruth.n), 3 * m.nStd);
+
+    // With only the relative tolerance, noise keeps the rounds going.
+    options.stdTolerance = 0;
+    options.maxRounds = 3;
+    EXPECT_FALSE(fitMaterials({obs}, record, {start}, options).converged);
+}
+
+TEST(Fitter, WeightsScaleResidualsNotTheEstimate) {
+    const PathSet ps = makePaths(threeLights());
+    Observation obs = observe(ps, {kTruth}, 0.01, 5);
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    const FitResult plain = fitPathSets({obs}, {ps}, {start});
+    obs.weight.assign(ps.width * ps.height, 3.0f);
+    obs.weight[5] = 0;  // a zero weight leaves the pixel out
+    const FitResult weighted = fitPathSets({obs}, {ps}, {start});
+    EXPECT_EQ(weighted.pixelsLeftOut.at("masked"), 1u);
+    for (int c = 0; c < 3; ++c) {
+        // Only the left-out pixel moves the estimate, by far less than its uncertainty.
+        EXPECT_NEAR(weighted.materials[0].kd[c], plain.materials[0].kd[c],
+                    0.01 * plain.materials[0].kdStd[c]);
+        EXPECT_NEAR(weighted.materials[0].kdStd[c], plain.materials[0].kdStd[c],
+                    1e-6 * plain.materials[0].kdStd[c]);
+    }
+    EXPECT_NEAR(weighted.materials[0].nStd, plain.materials[0].nStd,
+                1e-6 * plain.materials[0].nStd);
+    obs.weight[7] = -1;
+    EXPECT_THROW(fitPathSets({obs}, {ps}, {start}), Error);
+}
+
+TEST(Fitter, RejectsInconsistentInput) {
+    const PathSet ps = makePaths(threeLights());
+    const Observation obs = observe(ps, {kTruth});
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    Observation small = obs;
+    small.width -= 1;
+    EXPECT_THROW(fitPathSets({small}, {ps}, {start}), Error);
+    EXPECT_THROW(fitPathSets({obs}, {ps}, {start, start}), Error);  // slot count
+    PathSet badSlot = ps;
+    badSlot.vertices[3].slot = 4;
+    EXPECT_THROW(fitPathSets({obs}, {badSlot}, {start}), Error);
+    EXPECT_THROW(
+        fitPathSets({obs}, {ps}, {material(Color3::Constant(0.7), Color3::Constant(0.7), 3)}),
+        Error);
+    Observation allMasked = obs;
+    allMasked.valid.assign(obs.width * obs.height, 0);
+    EXPECT_THROW(fitPathSets({allMasked}, {ps}, {start}), Error);
+}
+
+// ---- Report
+
+TEST(FitReport, HasEveryKeyAndIsWrittenAtomically) {
+    const PathSet ps = makePaths(threeLights());
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    const PhongMaterial truth = material(Color3(0.6, 0.5, 0.4), Color3::Zero(), 10);
+    const FitResult r = fitPathSets({observe(ps, {truth}, 0.01)}, {ps}, {start});
+    const nlohmann::json j = toJson(r, {"ball"});
+    for (const char* key :
+         {"materials", "rmse", "converged", "rounds", "time_s", "pixels_used", "pixels_left_out"})
+        EXPECT_TRUE(j.contains(key)) << key;
+    const nlohmann::json& m = j["materials"]["ball"];
+    for (const char* key : {"kd", "ks", "n", "kd_std", "ks_std", "n_std", "unconstrained"})
+        EXPECT_TRUE(m.contains(key)) << key;
+    EXPECT_EQ(m["kd"].size(), 3u);
+    EXPECT_DOUBLE_EQ(m["ks"][1].get<double>(), r.materials[0].ks[1]);
+    EXPECT_EQ(m["unconstrained"], nlohmann::json::array({"n"}));
+    ASSERT_EQ(j["rounds"].size(), 1u);
+    for (const char* key : {"round", "time_s", "rmse", "iterations", "materials"})
+        EXPECT_TRUE(j["rounds"][0].contains(key)) << key;
+    EXPECT_TRUE(j["rounds"][0]["materials"].contains("ball"));
+    EXPECT_EQ(j["pixels_left_out"]["no_fitted_material"].get<std::size_t>(),
+              r.pixelsLeftOut.at("no_fitted_material"));
+    EXPECT_THROW(toJson(r, {"a", "b"}), Error);
+
+    const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                      ("phongfit_fit_report_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    writeFitReport(dir / "fit.json", r, {"ball"});
+    std::ifstream in(dir / "fit.json");
+    EXPECT_EQ(nlohmann::json::parse(in), j);
+    in.close();
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir),
+                            std::filesystem::directory_iterator()),
+              1);
+    std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace phongfit

@@ -1,0 +1,248 @@
+#include "replay.h"
+
+#include <ceres/gradient_checker.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "material_params.h"
+#include "pixel_residual.h"
+
+namespace phongfit {
+namespace {
+
+// A vertex as generated: the directions it came from, so the model can be evaluated directly.
+struct DirectVertex {
+    std::uint32_t slot;
+    Vec3d wi, wo;
+};
+struct DirectTerm {
+    Color3 constant;
+    std::vector<DirectVertex> vertices;
+};
+
+Vec3d randomUpper(std::mt19937& rng) {
+    std::normal_distribution<double> normal;
+    Vec3d w;
+    do {
+        w = Vec3d(normal(rng), normal(rng), normal(rng));
+    } while (w.norm() < 1e-3);
+    w.normalize();
+    w.z() = std::abs(w.z()) + 0.05;
+    return w.normalized();
+}
+
+// Pixels with 0 to 4 terms of 1 to 3 vertices on two slots; vertex directions random in the upper
+// hemisphere, some of them right on the mirror direction (the lobe's peak).
+struct RandomPaths {
+    PathSet paths;
+    std::vector<std::vector<DirectTerm>> direct;  // per pixel
+
+    explicit RandomPaths(int pixels, unsigned seed) {
+        std::mt19937 rng(seed);
+        std::uniform_real_distribution<double> uniform(0, 1);
+        paths.width = pixels;
+        paths.height = 1;
+        paths.spp = 4;
+        paths.slots = 2;
+        direct.resize(pixels);
+        paths.pixelStart.push_back(0);
+        for (int p = 0; p < pixels; ++p) {
+            paths.background.push_back(Color<float>(0.01f * float(p % 3), 0.02f, 0.0f));
+            const int terms = p % 5;
+            for (int t = 0; t < terms; ++t) {
+                DirectTerm dt;
+                dt.constant = Color3(uniform(rng), uniform(rng), uniform(rng)) * 2;
+                PathTerm term;
+                term.pixel = std::uint32_t(p);
+                term.firstVertex = std::uint32_t(paths.vertices.size());
+                term.vertexCount = 1 + (p + t) % 3;
+                term.constant = dt.constant.cast<float>();
+                for (std::uint32_t k = 0; k < term.vertexCount; ++k) {
+                    DirectVertex v;
+                    v.slot = (p + t + k) % 2;
+                    v.wo = randomUpper(rng);
+                    v.wi = (p + k) % 4 == 0 ? reflectLocal(v.wo) : randomUpper(rng);
+                    dt.vertices.push_back(v);
+                    paths.vertices.push_back({float(logCosAlpha(v.wi, v.wo)), v.slot});
+                }
+                paths.terms.push_back(term);
+                direct[p].push_back(dt);
+            }
+            paths.pixelStart.push_back(std::uint32_t(paths.terms.size()));
+        }
+    }
+
+    Color3 directEvaluation(int p, const std::vector<PhongMaterial>& theta) const {
+        Color3 sum = paths.background[p].cast<double>();
+        for (const DirectTerm& t : direct[p]) {
+            Color3 f = Color3::Ones();
+            for (const DirectVertex& v : t.vertices) f *= phongEval(theta[v.slot], v.wi, v.wo);
+            sum += t.constant * f;
+        }
+        return sum;
+    }
+};
+
+std::vector<PhongMaterial> twoMaterials() {
+    PhongMaterial a, b;
+    a.kd = Color3(0.5, 0.3, 0.2);
+    a.ks = Color3(0.2, 0.4, 0.1);
+    a.n = 30;
+    b.kd = Color3(0.1, 0.6, 0.3);
+    b.ks = Color3(0.7, 0.1, 0.4);
+    b.n = 800;
+    return {a, b};
+}
+
+TEST(Replay, EqualsDirectEvaluationOfTheModel) {
+    const RandomPaths r(60, 1);
+    const std::vector<PhongMaterial> theta = twoMaterials();
+    int withTerms = 0;
+    for (int p = 0; p < r.paths.width; ++p) {
+        const Color3 replayed = replayPixel(r.paths, p, theta.data());
+        const Color3 direct = r.directEvaluation(p, theta);
+        withTerms += !r.direct[p].empty();
+        for (int c = 0; c < 3; ++c) {
+            // logCos is stored in float: n * (float rounding of log cos) of relative error.
+            EXPECT_NEAR(replayed[c], direct[c], 1e-5 * (1 + std::abs(direct[c])))
+                << "pixel " << p << " channel " << c;
+        }
+    }
+    EXPECT_GT(withTerms, 40);
+}
+
+TEST(Replay, VertexBehindTheLobeContributesOnlyDiffuse) {
+    PathSet paths;
+    paths.width = paths.height = 1;
+    paths.slots = 1;
+    paths.background = {Color<float>(0.5f, 0.25f, 0.0f)};
+    paths.vertices = {{-std::numeric_limits<float>::infinity(), 0}};
+    paths.terms = {{0, 0, 1, Color<float>(2.0f, 2.0f, 2.0f)}};
+    paths.pixelStart = {0, 1};
+    PhongMaterial m;
+    m.kd = Color3(0.3, 0.3, 0.3);
+    m.ks = Color3(0.5, 0.5, 0.5);
+    m.n = 1e6;
+    const Color3 value = replayPixel(paths, 0, &m);
+    EXPECT_NEAR(value[0], 0.5 + 2 * 0.3 / kPi, 1e-12);
+    EXPECT_NEAR(value[2], 2 * 0.3 / kPi, 1e-12);
+
+    using Jet = ceres::Jet<double, 7>;
+    const double y[7] = {0.3, 0.3, 0.3, 0.5, 0.5, 0.5, std::log(1e6)};
+    Jet yj[7];
+    for (int i = 0; i < 7; ++i) yj[i] = Jet(y[i], i);
+    const PhongParams<Jet> mj = naturalToPhong<7>(yj);
+    const Color<Jet> jet = replayPixel(paths, 0, &mj);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_TRUE(jet[c].v.allFinite());
+        EXPECT_NEAR(jet[c].v[c], 2 / kPi, 1e-12);
+        EXPECT_EQ(jet[c].v[3 + c], 0.0);
+        EXPECT_EQ(jet[c].v[6], 0.0);
+    }
+}
+
+// d I / d (kd, ks, log n) of both slots from Jets against central differences.
+TEST(Replay, JetGradientsMatchCentralDifferences) {
+    const RandomPaths r(40, 2);
+    const std::vector<PhongMaterial> theta = twoMaterials();
+    using Jet = ceres::Jet<double, 7>;
+    std::vector<Eigen::Matrix<double, 7, 1>> y = {naturalFromPhong<7>(theta[0]),
+                                                  naturalFromPhong<7>(theta[1])};
+    int checked = 0;
+    for (int p = 0; p < r.paths.width; ++p) {
+        for (int slot = 0; slot < 2; ++slot) {
+            std::vector<PhongParams<Jet>> tj(2);
+            for (int s = 0; s < 2; ++s) {
+                Jet yj[7];
+                for (int i = 0; i < 7; ++i) yj[i] = s == slot ? Jet(y[s][i], i) : Jet(y[s][i]);
+                tj[s] = naturalToPhong<7>(yj);
+            }
+            const Color<Jet> jet = replayPixel(r.paths, p, tj.data());
+            for (int i = 0; i < 7; ++i) {
+                const double h = 1e-6;
+                Color3 value[2];
+                for (int side = 0; side < 2; ++side) {
+                    auto ys = y;
+                    ys[slot][i] += side == 0 ? h : -h;
+                    const std::vector<PhongMaterial> t = {naturalToPhong<7>(ys[0].data()),
+                                                          naturalToPhong<7>(ys[1].data())};
+                    value[side] = replayPixel(r.paths, p, t.data());
+                }
+                for (int c = 0; c < 3; ++c) {
+                    const double numeric = (value[0][c] - value[1][c]) / (2 * h);
+                    EXPECT_NEAR(jet[c].v[i], numeric, 1e-5 * (1 + std::abs(numeric)))
+                        << "pixel " << p << " slot " << slot << " parameter " << i;
+                    checked += numeric != 0;
+                }
+            }
+        }
+    }
+    EXPECT_GT(checked, 200);
+}
+
+template <int P>
+void checkResidualGradients(const HeldParams& heldFirst) {
+    const RandomPaths r(30, 3);
+    const std::vector<PhongMaterial> theta = twoMaterials();
+    const std::vector<HeldParams> held = {heldFirst, HeldParams{}};
+    double x[2][P];
+    for (int s = 0; s < 2; ++s) toInternal<P>(naturalFromPhong<P>(theta[s]).data(), held[s], x[s]);
+    const std::vector<std::uint32_t> bothSlots = {0, 1};
+    int probed = 0;
+    for (int p = 0; p < r.paths.width; ++p) {
+        if (r.direct[p].empty()) continue;
+        const Color3 observed(0.3, 0.2, 0.1);
+        const PixelResidual<P> residual(r.paths, std::uint32_t(p), observed, 1.5, bothSlots, held);
+        const std::vector<const ceres::Manifold*>* noManifolds = nullptr;
+        ceres::NumericDiffOptions numeric;
+        numeric.ridders_relative_initial_step_size = 1e-4;  // the lobe in log n is stiff
+        ceres::GradientChecker checker(&residual, noManifolds, numeric);
+        ceres::GradientChecker::ProbeResults results;
+        const double* parameters[2] = {x[0], x[1]};
+        checker.Probe(parameters, 1e-6, &results);
+        ASSERT_TRUE(results.return_value);
+        // The checker's own verdict is relative per entry, which rounding fails where a derivative
+        // underflows to ~1e-18; compare relative to the block's scale instead.
+        for (int b = 0; b < 2; ++b) {
+            const Eigen::MatrixXd& user = results.jacobians[b];
+            const Eigen::MatrixXd& numericJacobian = results.numeric_jacobians[b];
+            const double scale = numericJacobian.cwiseAbs().maxCoeff();
+            EXPECT_LE((user - numericJacobian).cwiseAbs().maxCoeff(), 1e-7 * scale)
+                << "pixel " << p << " block " << b << "\n"
+                << results.error_log;
+        }
+
+        // Residuals alone equal the ones computed along with the Jacobian.
+        double plain[3], withJacobian[3], jacobian0[3 * P], jacobian1[3 * P];
+        double* jacobians[2] = {jacobian0, jacobian1};
+        ASSERT_TRUE(residual.Evaluate(parameters, plain, nullptr));
+        ASSERT_TRUE(residual.Evaluate(parameters, withJacobian, jacobians));
+        const std::vector<PhongMaterial> phong = {toPhong<P>(x[0], held[0]),
+                                                  toPhong<P>(x[1], held[1])};
+        const Color3 predicted = replayPixel(r.paths, p, phong.data());
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_DOUBLE_EQ(plain[c], withJacobian[c]);
+            EXPECT_NEAR(plain[c], 1.5 * (predicted[c] - observed[c]), 1e-12);
+        }
+        ++probed;
+    }
+    EXPECT_GT(probed, 15);
+}
+
+TEST(PixelResidual, PassesGradientCheckerRgb) { checkResidualGradients<kRgbBlock>(HeldParams{}); }
+
+TEST(PixelResidual, PassesGradientCheckerGrey) { checkResidualGradients<kGreyBlock>(HeldParams{}); }
+
+TEST(PixelResidual, PassesGradientCheckerWithHeldDiffuse) {
+    HeldParams held;
+    held.kd = {true, false, true};
+    held.n = true;
+    checkResidualGradients<kRgbBlock>(held);
+}
+
+}  // namespace
+}  // namespace phongfit
