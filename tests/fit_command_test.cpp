@@ -1,0 +1,138 @@
+// `phongfit fit` end to end: the outputs a user gets, and every kind of bad input refused with one
+// line, a non-zero exit and nothing written.
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfOutputFile.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <random>
+
+#include "image.h"
+#include "subprocess.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kScenes = PHONGFIT_SCENES_DIR;
+const std::string kSphere = kScenes + "/sphere_point.xml";
+constexpr int kSize = 40;
+
+class FitCommand : public ::testing::Test {
+protected:
+    static void SetUpTestSuite() {
+        dir_ = fs::temp_directory_path() /
+               ("phongfit_fit_" + std::to_string(getpid()) + "_" + std::to_string(std::random_device{}()));
+        fs::create_directories(dir_);
+        const auto r = run({"render", kSphere, "-o", path("sphere.exr"), "--spp", "64", "--quiet"});
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+    }
+    static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+    static std::string path(const std::string& name) { return (dir_ / name).string(); }
+    static test::ProcessResult run(std::vector<std::string> args) {
+        args.insert(args.begin(), PHONGFIT_EXE);
+        for (const char* d : {"width", "height"}) {
+            if (args.size() > 1 && (args[1] == "render" || args[1] == "fit")) {
+                args.push_back("-D");
+                args.push_back(std::string(d) + "=" + std::to_string(kSize));
+            }
+        }
+        return test::runProcess(args);
+    }
+    static fs::path dir_;
+};
+fs::path FitCommand::dir_;
+
+TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
+    const auto r = run({"fit", "--view", kSphere + ":" + path("sphere.exr"), "--material", "sphere",
+                        "--n", "300", "--kd", "0.3", "-o", path("out"), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("sphere: kd = "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("left out: indirect bounces"), std::string::npos) << r.out;
+
+    const auto report = nlohmann::json::parse(std::ifstream(path("out/fit.json")));
+    const auto& m = report["materials"]["sphere"];
+    for (const char* key : {"kd", "ks", "kd_std", "ks_std"}) ASSERT_EQ(m[key].size(), 3u) << key;
+    EXPECT_TRUE(m["n"].is_number());
+    EXPECT_TRUE(m["n_std"].is_number());
+    EXPECT_TRUE(m["unconstrained"].is_array());
+    EXPECT_TRUE(report["rmse"].is_number());
+    EXPECT_GE(report["rounds"].size(), 1u);
+    EXPECT_TRUE(report["rounds"][0]["time_s"].is_number());
+    EXPECT_EQ(report["views"][0]["max_depth"], 2);
+    EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1) << "a coarse check; recovery is tested elsewhere";
+
+    // fitted.xml renders, with the fitted values in it.
+    const auto again = run({"render", path("out/fitted.xml"), "-o", path("again.exr"), "--spp", "4",
+                            "--quiet"});
+    ASSERT_EQ(again.exitCode, 0) << again.err;
+    const cv::Mat compare = cv::imread(path("out/compare.png"));
+    EXPECT_EQ(compare.cols, 3 * kSize);
+    EXPECT_EQ(compare.rows, kSize);
+}
+
+void writeExrWithNan(const std::string& file) {
+    std::vector<float> plane(kSize * kSize, 0.25f);
+    plane[7] = std::nanf("");
+    Imf::Header header(kSize, kSize);
+    Imf::FrameBuffer frame;
+    for (const char* c : {"R", "G", "B"}) {
+        header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        frame.insert(c, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(plane.data()), sizeof(float),
+                                   sizeof(float) * kSize));
+    }
+    Imf::OutputFile out(file.c_str(), header);
+    out.setFrameBuffer(frame);
+    out.writePixels(kSize);
+}
+
+TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
+    cv::imwrite(path("mask_small.png"), cv::Mat(kSize / 2, kSize, CV_8U, cv::Scalar(255)));
+    cv::imwrite(path("mask_zero.png"), cv::Mat(kSize, kSize, CV_8U, cv::Scalar(0)));
+    writeExrWithNan(path("nan.exr"));
+    Image wrongSize(kSize + 1, kSize);
+    writeExr(wrongSize, path("wrong_size.exr"));
+    std::ofstream(path("garbage.exr")) << "not an image";
+    const std::string view = kSphere + ":" + path("sphere.exr");
+    const std::string cornell = kScenes + "/cornell_phong.xml";
+
+    struct Case {
+        std::vector<std::string> args;
+        std::string fragment;
+    };
+    const std::vector<Case> cases = {
+        {{"--view", kSphere + ":" + path("wrong_size.exr"), "--material", "sphere"}, "image is 41x40"},
+        {{"--view", view, "--material", "sphere", "--mask", path("mask_small.png")}, "mask_small.png"},
+        {{"--view", view, "--material", "ball"}, "no bsdf with id 'ball'"},
+        {{"--view", cornell + ":" + path("sphere.exr"), "--material", "white"}, "not 'phong'"},
+        {{"--view", view, "--material", "sphere", "--mask", path("mask_zero.png")}, "every pixel is masked"},
+        {{"--view", kSphere + ":" + path("nan.exr"), "--material", "sphere"}, "is not finite"},
+        {{"--view", kSphere + ":" + path("missing.exr"), "--material", "sphere"}, "missing.exr"},
+        {{"--view", kSphere + ":" + path("garbage.exr"), "--material", "sphere"}, "garbage.exr"},
+        {{"--view", path("nope.xml") + ":" + path("sphere.exr"), "--material", "sphere"}, "nope.xml"},
+        {{"--view", "no-colon-here", "--material", "sphere"}, "expected SCENE.xml:IMAGE"},
+        {{"--view", view, "--material", "sphere", "--kd", "0.9", "--ks", "0.5"}, "exceeds 1"},
+        {{"--view", view, "--material", "sphere", "--kd", "1,2"}, "--kd '1,2'"},
+        {{"--view", view, "--material", "sphere", "--loss", "l1"}, "--loss"},
+    };
+    for (const Case& c : cases) {
+        std::vector<std::string> args = {"fit"};
+        args.insert(args.end(), c.args.begin(), c.args.end());
+        args.insert(args.end(), {"-o", path("refused"), "--quiet"});
+        const auto r = run(args);
+        EXPECT_NE(r.exitCode, 0) << c.fragment;
+        EXPECT_NE(r.err.find(c.fragment), std::string::npos) << "expected '" << c.fragment << "' in: " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_FALSE(fs::exists(path("refused"))) << c.fragment;
+    }
+}
+
+}  // namespace
+}  // namespace phongfit
