@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "error.h"
+#include "temp_dir.h"
 
 namespace phongfit {
 namespace {
@@ -17,12 +18,6 @@ namespace fs = std::filesystem;
 
 class AtomicFileTest : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() / ("phongfit_atomic_" + std::to_string(::getpid()) + "_" +
-                                            std::to_string(std::random_device{}()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
 
     static std::string read(const fs::path& path) {
         std::ifstream in(path);
@@ -37,7 +32,8 @@ protected:
         return names;
     }
 
-    fs::path dir_;
+    const test::TempDir temp_{"atomic"};
+    const fs::path& dir_ = temp_.path();
 };
 
 TEST_F(AtomicFileTest, WritesThroughATemporaryInTheSameDirectoryWithTheSameExtension) {

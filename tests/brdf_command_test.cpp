@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "phong_brdf.h"
+#include "temp_dir.h"
 
 namespace phongfit {
 namespace {
@@ -22,12 +23,6 @@ namespace fs = std::filesystem;
 
 class BrdfCommandTest : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() / ("phongfit_brdf_" + std::to_string(::getpid()) + "_" +
-                                            std::to_string(std::random_device{}()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
 
     // Runs phongfit with `args`; returns its exit code, stdout and stderr in out_ and err_.
     int run(const std::string& args) {
@@ -48,7 +43,8 @@ protected:
     }
     std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
-    fs::path dir_;
+    const test::TempDir temp_{"brdf"};
+    const fs::path& dir_ = temp_.path();
     std::string out_, err_;
 };
 

@@ -1,4 +1,5 @@
 #include "image.h"
+#include "temp_dir.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -29,12 +30,6 @@ double srgbFormula(double v) {
 
 class ImageTest : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() / ("phongfit_image_" + std::to_string(::getpid()) + "_" +
-                                            std::to_string(std::random_device{}()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
 
     std::string path(const std::string& name) const { return (dir_ / name).string(); }
     bool dirIsEmpty() const { return fs::is_empty(dir_); }
@@ -67,7 +62,8 @@ protected:
         out.writePixels(height);
     }
 
-    fs::path dir_;
+    const test::TempDir temp_{"image"};
+    const fs::path& dir_ = temp_.path();
 };
 
 TEST_F(ImageTest, ExrRoundTripIsBitExact) {

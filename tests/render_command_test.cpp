@@ -9,6 +9,7 @@
 
 #include "image.h"
 #include "subprocess.h"
+#include "temp_dir.h"
 
 namespace phongfit {
 namespace {
@@ -17,14 +18,9 @@ namespace fs = std::filesystem;
 
 class RenderCommand : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() /
-               ("phongfit_render_" + std::to_string(getpid()) + "_" + std::to_string(std::random_device{}()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
     std::string path(const std::string& name) const { return (dir_ / name).string(); }
-    fs::path dir_;
+    const test::TempDir temp_{"render"};
+    const fs::path& dir_ = temp_.path();
 };
 
 const std::string kScenes = PHONGFIT_SCENES_DIR;

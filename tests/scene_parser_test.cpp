@@ -11,34 +11,12 @@
 #include <random>
 
 #include "error.h"
+#include "temp_dir.h"
 
 namespace phongfit {
 namespace {
 
 namespace fs = std::filesystem;
-
-// A unique directory under the system temp dir, removed with everything in it.
-class TempDir {
-  public:
-    TempDir()
-        : path_(fs::temp_directory_path() / fmt::format("phongfit_scene_parser_test_{}_{}",
-                                                        ::getpid(), std::random_device{}())) {
-        fs::create_directories(path_);
-    }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path_, ec);
-    }
-    fs::path write(const std::string& name, const std::string& text) const {
-        const fs::path file = path_ / name;
-        std::ofstream(file, std::ios::binary) << text;
-        return file;
-    }
-    const fs::path& path() const { return path_; }
-
-  private:
-    fs::path path_;
-};
 
 constexpr const char* kSensorLine =
     R"(<sensor type="perspective"><float name="fov" value="45"/></sensor>)";
@@ -432,7 +410,7 @@ TEST(SceneParser, Emitters) {
 }
 
 TEST(SceneParser, ObjMeshFromFile) {
-    const TempDir dir;
+    const test::TempDir dir("scene_parser");
     // A unit quad in z = 0 with normals tilted towards +x, and a triangle without normals.
     dir.write("quad.obj",
               "# quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 1 0 1\nf 1//1 2//1 3//1 4//1\n");
@@ -472,7 +450,7 @@ TEST(SceneParser, ObjMeshFromFile) {
 }
 
 TEST(SceneParser, BadObjFilesNameTheFile) {
-    const TempDir dir;
+    const test::TempDir dir("scene_parser");
     dir.write("empty.obj", "# nothing\nv 0 0 0\n");
     dir.write("badindex.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
     dir.write("badquad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 9\n");
@@ -688,7 +666,7 @@ TEST(SceneParser, MalformedInputsGiveFileLineAndWhatIsWrong) {
 }
 
 TEST(SceneParser, LoadSceneErrors) {
-    const TempDir dir;
+    const test::TempDir dir("scene_parser");
     const std::string missing = (dir.path() / "missing.xml").string();
     EXPECT_NE(errorOf([&] { loadScene(missing); }).find("cannot open scene file '" + missing),
               std::string::npos);

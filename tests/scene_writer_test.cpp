@@ -12,33 +12,20 @@
 
 #include "error.h"
 #include "scene_parser.h"
+#include "temp_dir.h"
 
 namespace phongfit {
 namespace {
 
 namespace fs = std::filesystem;
 
-// A unique directory under the system temp dir, removed with everything in it.
-class TempDir {
-  public:
-    TempDir()
-        : path_(fs::temp_directory_path() / fmt::format("phongfit_scene_writer_test_{}_{}",
-                                                        ::getpid(), std::random_device{}())) {
-        fs::create_directories(path_ / "in" / "mesh");
-        fs::create_directories(path_ / "out");
+// A temp dir with the layout the tests use: in/mesh/ for inputs, out/ elsewhere.
+class TempDir : public test::TempDir {
+public:
+    TempDir() : test::TempDir("scene_writer") {
+        fs::create_directories(path() / "in" / "mesh");
+        fs::create_directories(path() / "out");
     }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path_, ec);
-    }
-    std::string write(const std::string& name, const std::string& text) const {
-        std::ofstream(path_ / name, std::ios::binary) << text;
-        return (path_ / name).string();
-    }
-    std::string at(const std::string& name) const { return (path_ / name).string(); }
-
-  private:
-    fs::path path_;
 };
 
 std::string read(const std::string& path) {
