@@ -11,6 +11,7 @@
 #include <optional>
 
 #include "atomic_file.h"
+#include "capture_command.h"
 #include "commands.h"
 #include "defines.h"
 #include "error.h"
@@ -321,10 +322,9 @@ void addFitCommand(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "fit", "recover kd, ks and n of phong materials from images of a scene");
     cmd->add_option("--view", args->views,
-                    "SCENE.xml:IMAGE (EXR linear; PNG/JPEG decoded from sRGB); repeat for a joint fit")
-        ->required();
-    cmd->add_option("--material", args->materials, "id of a phong bsdf to fit; repeatable")
-        ->required();
+                    "SCENE.xml:IMAGE (EXR linear; PNG/JPEG decoded from sRGB); repeat for a joint fit");
+    cmd->add_option("--material", args->materials,
+                    "with --view: id of a phong bsdf to fit; repeatable");
     cmd->add_option("-o,--output", args->output, "output directory")->required();
     cmd->add_option("--mask", args->mask, "PNG mask: pixels that are 0 are left out");
     cmd->add_option("--spp", args->spp, "paths recorded per pixel and round")
@@ -350,7 +350,14 @@ void addFitCommand(CLI::App& app) {
         ->check(CLI::Range(1, 1024));
     cmd->add_flag("--quiet", args->quiet, "no progress lines");
     cmd->add_flag("--verbose", args->verbose, "Ceres reports");
-    cmd->callback([args] { runFit(*args); });
+    auto capture = std::make_shared<CaptureArgs>();
+    addCaptureOptions(*cmd, *capture);
+    cmd->callback([args, capture, cmd] {
+        if (runCaptureFitIfGiven(*cmd, *capture, *args)) return;
+        if (args->materials.empty())
+            throw Error("--view needs --material ID (the phong bsdf to fit)");
+        runFit(*args);
+    });
 }
 
 }  // namespace phongfit

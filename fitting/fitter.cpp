@@ -3,11 +3,13 @@
 #include <ceres/ceres.h>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 
+#include <Eigen/Cholesky>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -19,6 +21,7 @@
 #include "error.h"
 #include "identifiability.h"
 #include "material_params.h"
+#include "moment_residual.h"
 #include "pixel_residual.h"
 #include "replay.h"
 #include "uncertainty.h"
@@ -47,6 +50,17 @@ namespace {
 constexpr int kDenseLimit = 64;
 // Reflectances below this are compared absolutely in the convergence test.
 constexpr double kReflectanceFloor = 0.01;
+// Pixels per block of the parallel sums. Fixed, with a fixed reduction tree, so that sums (and the
+// fit) are bit-identical whatever the thread count.
+constexpr std::size_t kPixelBlock = 256;
+// Solves per round with the instruments moved to the last solution (FitOptions::tolerance); a far
+// start needs 3 or 4, the robust losses' weights a few more.
+constexpr int kMaxInstrumentPasses = 8;
+// Instruments are weak when they make a standard error this many times least squares' (which
+// noise in the Jacobians biases but does not blow up); measured 1-3x where they work.
+constexpr double kWeakInstruments = 10;
+// Instruments are averaged over this many pixels on each side (RoundSolver::smoothed).
+constexpr int kInstrumentRadius = 2;
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -54,21 +68,30 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 
 bool finite(const Color<float>& c) { return c.allFinite(); }
 
-// A pixel that enters the fit: observed, finite, and seen through at least one fitted material.
+// A pixel that enters the fit: observed, finite, and seen through a fitted material, or next to
+// one that is (prepare).
 struct UsedPixel {
     std::uint32_t view, pixel;
-    std::uint32_t slotBegin, slotCount;  // into Prepared::slots: the slots its vertices use
+    // Into Prepared::slots: the slots the vertices of the pixel and its neighbours use.
+    std::uint32_t slotBegin, slotCount;
     Color3 observed;
     double weight;
+    bool seesMaterial;  // its own paths (in either set) have a vertex on a fitted material
 };
 
 struct Prepared {
     std::vector<UsedPixel> pixels;
+    std::vector<int> widths, heights;  // per view
+    // Per view and pixel (y * width + x): its index in `pixels`, or -1 where it is not used.
+    std::vector<std::vector<std::int32_t>> index;
     std::vector<std::uint32_t> slots;
     std::vector<bool> slotSeen;
     std::map<std::string, std::size_t> leftOut;
-    double meanObserved = 0;  // over used pixels and channels
-    double rmsObserved = 0;   // of weight * observation
+    // The pixels that see a fitted material themselves, which come first in `pixels` (the rest only
+    // have neighbours that do, see prepare). Over those and channels:
+    std::size_t seeingMaterial = 0;
+    double meanObserved = 0;
+    double rmsObserved = 0;  // of weight * observation
 };
 
 void checkPathSet(const PathSet& paths, const Observation& obs, int view, int slots) {
@@ -130,8 +153,17 @@ void checkObservation(const Observation& obs, int view) {
                             view, obs.weight[p], p % obs.width, p / obs.width));
 }
 
-Prepared prepare(const std::vector<Observation>& observations, const std::vector<PathSet>& paths,
-                 int slots) {
+// The path sets the estimator replays: both recordings (instrumental variables) or their pool
+// (least squares), one list per view each.
+using SetLists = std::vector<const std::vector<PathSet>*>;
+
+// `radius`: a pixel enters when a fitted material is seen through a pixel at most this far from it
+// in either set (RoundSolver::smoothed). Selecting by the sets must not select A's residuals by A's
+// own noise: a pixel where only B sees the material has an instrument from B and must enter
+// whatever A holds, or A's residuals would be kept only where A hit the material, which biases
+// them.
+Prepared prepare(const std::vector<Observation>& observations, const SetLists& sets, int slots,
+                 int radius) {
     Prepared prep;
     prep.slotSeen.assign(slots, false);
     std::size_t masked = 0, nonFinite = 0, noMaterial = 0;
@@ -139,48 +171,84 @@ Prepared prepare(const std::vector<Observation>& observations, const std::vector
     std::vector<std::uint32_t> used;
     for (std::size_t view = 0; view < observations.size(); ++view) {
         const Observation& obs = observations[view];
-        const PathSet& ps = paths[view];
-        checkPathSet(ps, obs, int(view), slots);
-        const std::size_t pixels = ps.background.size();
+        const int width = obs.width, height = obs.height;
+        const std::size_t pixels = std::size_t(width) * std::size_t(height);
+        prep.widths.push_back(width);
+        prep.heights.push_back(height);
+        prep.index.emplace_back(pixels, -1);
+        // Per pixel, the slots its own vertices use (in either set), and whether it is usable.
+        std::vector<std::uint32_t> ownStart(pixels + 1, 0), own;
+        std::vector<std::uint8_t> usable(pixels, 0);
         for (std::size_t p = 0; p < pixels; ++p) {
+            ownStart[p] = std::uint32_t(own.size());
             const double weight = obs.weight.empty() ? 1.0 : obs.weight[p];
             if ((!obs.valid.empty() && obs.valid[p] == 0) || weight == 0) {
                 ++masked;
                 continue;
             }
-            const Color<float> observed(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]);
-            bool ok = finite(observed) && finite(ps.background[p]);
+            bool ok = finite(Color<float>(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]));
             used.clear();
-            for (std::uint32_t t = ps.pixelStart[p]; ok && t < ps.pixelStart[p + 1]; ++t) {
-                const PathTerm& term = ps.terms[t];
-                ok = finite(term.constant);
-                for (std::uint32_t k = 0; k < term.vertexCount; ++k)
-                    used.push_back(ps.vertices[term.firstVertex + k].slot);
+            for (const std::vector<PathSet>* set : sets) {
+                const PathSet& ps = (*set)[view];
+                ok = ok && finite(ps.background[p]);
+                for (std::uint32_t t = ps.pixelStart[p]; ok && t < ps.pixelStart[p + 1]; ++t) {
+                    const PathTerm& term = ps.terms[t];
+                    ok = finite(term.constant);
+                    for (std::uint32_t k = 0; k < term.vertexCount; ++k)
+                        used.push_back(ps.vertices[term.firstVertex + k].slot);
+                }
             }
             if (!ok) {
                 ++nonFinite;
                 continue;
             }
+            usable[p] = 1;
+            std::sort(used.begin(), used.end());
+            used.erase(std::unique(used.begin(), used.end()), used.end());
+            own.insert(own.end(), used.begin(), used.end());
+        }
+        ownStart[pixels] = std::uint32_t(own.size());
+        for (std::size_t p = 0; p < pixels; ++p) {
+            if (!usable[p]) continue;
+            const int x = int(p % std::size_t(width)), y = int(p / std::size_t(width));
+            used.clear();
+            for (int yy = std::max(y - radius, 0); yy <= std::min(y + radius, height - 1); ++yy)
+                for (int xx = std::max(x - radius, 0); xx <= std::min(x + radius, width - 1);
+                     ++xx) {
+                    const std::size_t q = std::size_t(yy) * std::size_t(width) + std::size_t(xx);
+                    used.insert(used.end(), own.begin() + ownStart[q],
+                                own.begin() + ownStart[q + 1]);
+                }
             if (used.empty()) {
                 ++noMaterial;
                 continue;
             }
             std::sort(used.begin(), used.end());
             used.erase(std::unique(used.begin(), used.end()), used.end());
+            const double weight = obs.weight.empty() ? 1.0 : obs.weight[p];
             UsedPixel u;
             u.view = std::uint32_t(view);
             u.pixel = std::uint32_t(p);
             u.slotBegin = std::uint32_t(prep.slots.size());
             u.slotCount = std::uint32_t(used.size());
-            u.observed = observed.cast<double>();
+            u.observed = Color3(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]);
             u.weight = weight;
+            u.seesMaterial = ownStart[p + 1] > ownStart[p];
             for (std::uint32_t s : used) prep.slotSeen[s] = true;
+            prep.index.back()[p] = std::int32_t(prep.pixels.size());
             prep.slots.insert(prep.slots.end(), used.begin(), used.end());
             prep.pixels.push_back(u);
+            if (!u.seesMaterial) continue;
+            ++prep.seeingMaterial;
             sum += u.observed.sum();
             sumSquares += weight * weight * u.observed.square().sum();
         }
     }
+    // Those that see a material first: the others' residuals do not depend on the parameters.
+    std::stable_partition(prep.pixels.begin(), prep.pixels.end(),
+                          [](const UsedPixel& u) { return u.seesMaterial; });
+    for (std::size_t i = 0; i < prep.pixels.size(); ++i)
+        prep.index[prep.pixels[i].view][prep.pixels[i].pixel] = std::int32_t(i);
     if (prep.pixels.empty())
         throw Error(
             fmt::format("no pixel of any view can be fitted: {} masked, {} not finite, {} "
@@ -188,10 +256,40 @@ Prepared prepare(const std::vector<Observation>& observations, const std::vector
                         masked, nonFinite, noMaterial));
     prep.leftOut = {
         {"masked", masked}, {"non_finite", nonFinite}, {"no_fitted_material", noMaterial}};
-    const double values = 3.0 * double(prep.pixels.size());
+    const double values = 3.0 * double(prep.seeingMaterial);
     prep.meanObserved = sum / values;
     prep.rmsObserved = std::sqrt(sumSquares / values);
     return prep;
+}
+
+// One set whose estimate is the mean of the two sets' estimates: both sets' terms at half weight.
+PathSet pool(const PathSet& a, const PathSet& b) {
+    PathSet out;
+    out.width = a.width;
+    out.height = a.height;
+    out.spp = a.spp + b.spp;
+    out.slots = a.slots;
+    const std::size_t pixels = a.background.size();
+    out.background.resize(pixels);
+    out.terms.reserve(a.terms.size() + b.terms.size());
+    out.vertices.reserve(a.vertices.size() + b.vertices.size());
+    out.pixelStart.reserve(pixels + 1);
+    out.pixelStart.push_back(0);
+    for (std::size_t p = 0; p < pixels; ++p) {
+        out.background[p] = 0.5f * (a.background[p] + b.background[p]);
+        for (const PathSet* set : {&a, &b}) {
+            for (std::uint32_t t = set->pixelStart[p]; t < set->pixelStart[p + 1]; ++t) {
+                PathTerm term = set->terms[t];
+                const auto first = set->vertices.begin() + term.firstVertex;
+                term.firstVertex = std::uint32_t(out.vertices.size());
+                term.constant *= 0.5f;
+                out.vertices.insert(out.vertices.end(), first, first + term.vertexCount);
+                out.terms.push_back(term);
+            }
+        }
+        out.pixelStart.push_back(std::uint32_t(out.terms.size()));
+    }
+    return out;
 }
 
 std::unique_ptr<ceres::LossFunction> makeLoss(const FitOptions& options, double meanObserved) {
@@ -219,34 +317,97 @@ struct RoundOutcome {
     std::map<std::string, std::size_t> leftOut;
 };
 
-// Sums over pixels in natural coordinates (per slot: kd, ks per colour group, log n), with J the
-// pixel's residual Jacobian, r its residual and rho' the robust loss' weight.
-struct Information {
-    Eigen::MatrixXd fisher;  // sum of rho' J^T J (the Gauss-Newton Hessian)
-    Eigen::MatrixXd scores;  // sum of rho'^2 J^T r r^T J
+// Sums over pixels at one point in natural coordinates (per slot: kd, ks per colour group, log n).
+// J is a pixel's weighted residual Jacobian in one set, rho' the robust loss' weight there, m the
+// pixel's term of the estimating equations (W Z^T r summed over the two sets for instrumental
+// variables, rho' J^T r for least squares).
+struct Analysis {
+    Eigen::MatrixXd gram;      // sum of rho' J^T J, averaged over the sets
+    Eigen::MatrixXd jacobian;  // of the estimating equations: sum of W Z^T J (or the gram)
+    Eigen::MatrixXd scores;    // sum of m m^T (uncertainty.h)
+    // Sum of l l^T, l = rho' J^T r averaged over the sets: least squares' scores, which with the
+    // gram give standard errors that weak instruments cannot blow up.
+    Eigen::MatrixXd leastSquaresScores;
+    double squares = 0;  // of the mean prediction's error, unweighted, where a material is seen
 
-    Information& operator+=(const Information& other) {
-        fisher += other.fisher;
-        scores += other.scores;
+    Analysis& operator+=(const Analysis& other) {
+        gram += other.gram;
+        jacobian += other.jacobian;
+        leastSquaresScores += other.leastSquaresScores;
+        squares += other.squares;
         return *this;
     }
 };
+
+// The estimating equations g and (if sized) dg/dy, summed over pixels.
+struct MomentSums {
+    Eigen::VectorXd g;
+    Eigen::MatrixXd jacobian;
+
+    MomentSums& operator+=(const MomentSums& other) {
+        g += other.g;
+        jacobian += other.jacobian;
+        return *this;
+    }
+};
+
+struct Minimized {
+    int iterations = 0;
+    double seconds = 0;
+};
+
+// Whether every parameter moved from `before` to `after` (natural coordinates, per slot) by less
+// than FitOptions::tolerance allows.
+template <int P>
+bool withinTolerance(const std::vector<Eigen::Matrix<double, P, 1>>& before,
+                     const std::vector<Eigen::Matrix<double, P, 1>>& after,
+                     const std::vector<std::vector<double>>& naturalStd,
+                     const FitOptions& options) {
+    using L = BlockLayout<P>;
+    for (std::size_t s = 0; s < before.size(); ++s) {
+        for (int i = 0; i < P; ++i) {
+            const double change = std::abs(after[s][i] - before[s][i]);
+            const double scale =
+                i == L::kLogN ? 1.0 : std::max(std::abs(before[s][i]), kReflectanceFloor);
+            if (change > options.tolerance * scale &&
+                change > options.stdTolerance * naturalStd[s][i])
+                return false;
+        }
+    }
+    return true;
+}
 
 // Solves one round on fixed path sets. P is the block size (RGB or grey).
 template <int P>
 class RoundSolver {
     using L = BlockLayout<P>;
     using NaturalVector = Eigen::Matrix<double, P, 1>;
+    using Jacobian = Eigen::Matrix<double, 3, P>;
+
+    // Per block of pixels: what replaying them needs.
+    struct Scratch {
+        std::vector<PhongParams<PackedJet>> jets;
+        std::vector<PhongMaterial> plain;
+        std::array<std::vector<Jacobian>, 2> jacobians;  // per set, per slot of the pixel
+        Eigen::VectorXd moment;                          // P per slot of the pixel
+        Eigen::MatrixXd momentJacobian;
+    };
 
 public:
-    RoundSolver(const std::vector<Observation>& observations, const std::vector<PathSet>& paths,
-                const std::vector<PhongMaterial>& start, const FitOptions& options, int threads)
-        : paths_(paths),
-          start_(start),
+    // `warmStart`: start the instrumental-variables solve from the least-squares solution (see
+    // solve).
+    RoundSolver(const std::vector<Observation>& observations, const std::vector<PathSet>& first,
+                const std::vector<PathSet>& second, const std::vector<PhongMaterial>& start,
+                const FitOptions& options, int threads, bool warmStart)
+        : start_(start),
           options_(options),
           threads_(threads),
           slots_(int(start.size())),
-          prep_(prepare(observations, paths, slots_)),
+          instrumental_(options.estimator == Estimator::InstrumentalVariables),
+          warmStart_(instrumental_ && warmStart),
+          pooled_(instrumental_ && !warmStart_ ? std::vector<PathSet>{} : poolAll(first, second)),
+          sets_(instrumental_ ? SetLists{&first, &second} : SetLists{&pooled_}),
+          prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0)),
           loss_(makeLoss(options, prep_.meanObserved)),
           arena_(threads) {}
 
@@ -263,29 +424,96 @@ public:
                 if (isHeld(held[s], i)) y[i] = y0[i];
             toInternal<P>(y.data(), held[s], block(s));
         }
-        for (;;) {
-            const ceres::Solver::Summary summary = minimize(held);
-            out.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
-            out.minimizerSeconds += summary.minimizer_time_in_seconds;
-            const Information info = information(held);
-            if (hold(findUnconstrained(info.fisher, 3.0 * double(prep_.pixels.size()),
+        std::vector<NaturalVector> instrumentPoint;  // in natural coordinates
+        // Instruments far from the solution (a far start: n off by 10x) give moment equations with
+        // spurious roots; least squares, biased but a true minimisation, lands near enough. Without
+        // the robust loss: on few samples per pixel most of the highlight looks like outliers.
+        if (warmStart_) {
+            const Minimized m = minimizeLeastSquares(held, nullptr);
+            out.iterations += m.iterations;
+            out.minimizerSeconds += m.seconds;
+            if (std::getenv("IVDBG")) {
+                const auto yy = naturalBlocks(held);
+                fmt::print(stderr, "DBG warm iters {} y {} {} {}\n", m.iterations, yy[0][0], yy[0][L::kGroups], yy[0][P - 1]);
+            }
+        }
+        Analysis analysis;
+        std::vector<double> instrumentX;  // where the instruments were taken
+        if (instrumental_) {
+            analysis = analyse(held);
+            adoptInstruments();
+            instrumentPoint = naturalBlocks(held);
+            instrumentX = x_;
+        }
+        const std::vector<std::vector<double>> noStd(slots_, std::vector<double>(P, 0.0));
+        bool weak = false;
+        for (int pass = 1;;) {
+            const Minimized m =
+                instrumental_ ? minimizeMoments(held) : minimizeLeastSquares(held, loss_.get());
+            out.iterations += m.iterations;
+            out.minimizerSeconds += m.seconds;
+            analysis = analyse(held);
+            out.naturalStd = naturalStd(analysis.jacobian, analysis.scores, held);
+            const std::vector<std::vector<double>> leastSquaresStd =
+                naturalStd(analysis.gram, analysis.leastSquaresScores, held);
+            if (std::getenv("IVDBG")) {
+                const auto yy = naturalBlocks(held);
+                fmt::print(stderr, "DBG pass {} iters {} y {} {} {} std {} {} {} ratio {} {} {}\n", pass, m.iterations,
+                           yy[0][0], yy[0][L::kGroups], yy[0][P - 1], out.naturalStd[0][0], out.naturalStd[0][L::kGroups], out.naturalStd[0][P - 1],
+                           out.naturalStd[0][0] / leastSquaresStd[0][0], out.naturalStd[0][L::kGroups] / leastSquaresStd[0][L::kGroups], out.naturalStd[0][P - 1] / leastSquaresStd[0][P - 1]);
+            }
+            weak = weak || (instrumental_ && weakInstruments(out.naturalStd, leastSquaresStd));
+            if (weak) {
+                // Too few pixels for the samples per pixel: the moment equations have no root
+                // near, and their solution is noise. Stay where the instruments were taken.
+                x_ = instrumentX;
+                analysis = analyse(held);
+                out.naturalStd = naturalStd(analysis.gram, analysis.leastSquaresScores, held);
+            } else if (instrumental_ && pass < kMaxInstrumentPasses &&
+                       !withinTolerance<P>(instrumentPoint, naturalBlocks(held), noStd,
+                                           options_)) {
+                // The estimate is consistent whatever the instruments; instruments at the
+                // estimate make it efficient, robust weights at the estimate make it robust, and
+                // moving them there until the estimate stays put (to the tolerance alone: the
+                // standard errors of a solve on instruments far from it can be anything) makes
+                // it independent of where the round started.
+                adoptInstruments();
+                instrumentPoint = naturalBlocks(held);
+                instrumentX = x_;
+                ++pass;
+                continue;
+            }
+            // What the images leave unconstrained is decided at the solution, not on the way.
+            if (hold(findUnconstrained(analysis.gram, 3.0 * double(prep_.seeingMaterial),
                                        prep_.rmsObserved, heldFlags(held)),
                      held))
                 continue;
-            out.naturalStd = naturalStd(held, summary.final_cost, info);
-            if (holdUnseenExponents(out.naturalStd, held)) continue;
+            if (holdUnseenExponents(naturalStd(analysis.gram, analysis.leastSquaresScores, held),
+                                    held))
+                continue;
             break;
         }
         for (int s = 0; s < slots_; ++s)
             out.materials.push_back(materialFit(s, held[s], out.naturalStd[s]));
-        out.rmse = rmse(held);
+        out.rmse = std::sqrt(analysis.squares / (3.0 * double(prep_.seeingMaterial)));
         out.pixelsUsed = prep_.pixels.size();
         out.leftOut = prep_.leftOut;
         return out;
     }
 
 private:
+    static std::vector<PathSet> poolAll(const std::vector<PathSet>& first,
+                                        const std::vector<PathSet>& second) {
+        std::vector<PathSet> pooled;
+        for (std::size_t v = 0; v < first.size(); ++v) pooled.push_back(pool(first[v], second[v]));
+        return pooled;
+    }
+
     double* block(int s) { return x_.data() + std::size_t(s) * P; }
+
+    std::span<const std::uint32_t> pixelSlots(const UsedPixel& u) const {
+        return {prep_.slots.data() + u.slotBegin, u.slotCount};
+    }
 
     static bool isHeld(const HeldParams& h, int i) {
         if (i == L::kLogN) return h.n;
@@ -303,6 +531,12 @@ private:
         for (int s = 0; s < slots_; ++s)
             for (int i = 0; i < P; ++i) flags[std::size_t(s) * P + i] = isHeld(held[s], i);
         return flags;
+    }
+
+    std::vector<NaturalVector> naturalBlocks(const std::vector<HeldParams>& held) {
+        std::vector<NaturalVector> y(slots_);
+        for (int s = 0; s < slots_; ++s) toNatural<P>(block(s), held[s], y[s].data());
+        return y;
     }
 
     // Holds the natural parameters `indices` (slot * P + i) at their start values, keeping the
@@ -327,8 +561,19 @@ private:
         return changed;
     }
 
+        // Whether some parameter's instrumental-variables standard error exceeds kWeakInstruments
+    // times least squares' (or is not finite).
+    static bool weakInstruments(const std::vector<std::vector<double>>& instrumental,
+                                const std::vector<std::vector<double>>& leastSquares) {
+        for (std::size_t s = 0; s < instrumental.size(); ++s)
+            for (int i = 0; i < P; ++i)
+                if (!(instrumental[s][i] <= kWeakInstruments * leastSquares[s][i])) return true;
+        return false;
+    }
+
     // n only shapes the lobe: when no group's ks is significantly above 0 (or every ks is held),
-    // the images do not constrain n.
+    // the images do not constrain n. `stdNatural` should not come from weak instruments, whose
+    // standard errors can be anything (least squares' do not).
     bool holdUnseenExponents(const std::vector<std::vector<double>>& stdNatural,
                              std::vector<HeldParams>& held) {
         std::vector<int> indices;
@@ -347,48 +592,89 @@ private:
         return hold(indices, held);
     }
 
-    ceres::Solver::Summary minimize(const std::vector<HeldParams>& held) {
-        ceres::Problem::Options problemOptions;
-        problemOptions.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-        problem_ = std::make_unique<ceres::Problem>(problemOptions);
+    // Adds the blocks of the slots some pixel sees, with their bounds and held coordinates;
+    // returns the number of free coordinates.
+    int addParameterBlocks(ceres::Problem& problem, const std::vector<HeldParams>& held,
+                           std::vector<std::uint32_t>& blockSlots, std::vector<double*>& blocks) {
         int freeCount = 0;
         for (int s = 0; s < slots_; ++s) {
             if (!prep_.slotSeen[s]) continue;
             double* x = block(s);
-            problem_->AddParameterBlock(x, P);
+            problem.AddParameterBlock(x, P);
+            blockSlots.push_back(std::uint32_t(s));
+            blocks.push_back(x);
             const std::vector<int> constant = heldCoordinates<P>(held[s]);
             if (int(constant.size()) == P) {
-                problem_->SetParameterBlockConstant(x);
+                problem.SetParameterBlockConstant(x);
             } else {
                 std::vector<double> lower(P), upper(P);
                 internalBounds<P>(held[s], x, lower.data(), upper.data());
                 std::vector<bool> fixed(P, false);
                 for (int i : constant) fixed[i] = true;
-                problem_->SetManifold(x, new BoxManifold(lower, upper, fixed));
+                problem.SetManifold(x, new BoxManifold(lower, upper, fixed));
             }
             freeCount += P - int(constant.size());
         }
-        const std::span<const HeldParams> heldSpan(held);
+        return freeCount;
+    }
+
+    Minimized minimizeMoments(const std::vector<HeldParams>& held) {
+        ceres::Problem problem;
+        std::vector<std::uint32_t> blockSlots;
         std::vector<double*> blocks;
+        if (addParameterBlocks(problem, held, blockSlots, blocks) == 0) return {};
+        std::vector<int> free;
+        for (std::uint32_t s : blockSlots)
+            for (int i = 0; i < P; ++i)
+                if (!isHeld(held[s], i)) free.push_back(int(s) * P + i);
+        const auto moments = [this](const double* y, Eigen::VectorXd& g, Eigen::MatrixXd* dg) {
+            momentSums(y, g, dg);
+        };
+        problem.AddResidualBlock(
+            new MomentResidual<P>(moments, blockSlots, held, free, whitening(free)), nullptr,
+            blocks);
+        // One small dense block: the time is in the pixel sums, which run in parallel already.
+        return run(problem, ceres::DENSE_QR, 1, ceres::Solver::Options().initial_trust_region_radius);
+    }
+
+    Minimized minimizeLeastSquares(const std::vector<HeldParams>& held, ceres::LossFunction* loss) {
+        ceres::Problem::Options problemOptions;
+        problemOptions.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+        ceres::Problem problem(problemOptions);
+        std::vector<std::uint32_t> blockSlots;
+        std::vector<double*> blocks;
+        const int freeCount = addParameterBlocks(problem, held, blockSlots, blocks);
+        if (freeCount == 0) return {};
+        const std::span<const HeldParams> heldSpan(held);
         for (const UsedPixel& u : prep_.pixels) {
-            const std::span<const std::uint32_t> slots(prep_.slots.data() + u.slotBegin,
-                                                       u.slotCount);
+            // The others have a residual that does not depend on the parameters.
+            if (!u.seesMaterial) continue;
+            const std::span<const std::uint32_t> slots = pixelSlots(u);
             blocks.clear();
             for (std::uint32_t s : slots) blocks.push_back(block(int(s)));
-            problem_->AddResidualBlock(new PixelResidual<P>(paths_[u.view], u.pixel, u.observed,
-                                                            u.weight, slots, heldSpan),
-                                       loss_.get(), blocks.data(), int(blocks.size()));
+            problem.AddResidualBlock(new PixelResidual<P>(pooled_[u.view], u.pixel, u.observed,
+                                                          u.weight, slots, heldSpan),
+                                     loss, blocks.data(), int(blocks.size()));
         }
-        freeParameters_ = freeCount;
+        // A far start's first Gauss-Newton step can jump log n to its bound, where the lobe is
+        // invisible and the diffuse part alone fits better than at the start: a dead end (n = 0.3
+        // for a true 30 went to 1e6). Start with steps that change log n by about 1 at most.
+        return run(problem,
+                   freeCount <= kDenseLimit ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY,
+                   threads_, 1.0);
+    }
 
+    // `initialRadius`: Ceres' initial trust region radius, in its Jacobi-scaled coordinates.
+    Minimized run(ceres::Problem& problem, ceres::LinearSolverType linearSolver, int threads,
+                  double initialRadius) {
         ceres::Solver::Options solverOptions;
-        solverOptions.linear_solver_type =
-            freeCount <= kDenseLimit ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY;
+        solverOptions.linear_solver_type = linearSolver;
         // Dogleg reuses one factorization across rejected steps, which the far starts (n off by
         // 100x) produce several of; measured 2x fewer Jacobian evaluations than
         // Levenberg-Marquardt.
         solverOptions.trust_region_strategy_type = ceres::DOGLEG;
-        solverOptions.num_threads = threads_;
+        solverOptions.num_threads = threads;
+        solverOptions.initial_trust_region_radius = initialRadius;
         solverOptions.max_num_iterations = options_.maxIterations;
         solverOptions.function_tolerance = 1e-10;
         solverOptions.parameter_tolerance = 1e-10;
@@ -396,110 +682,354 @@ private:
             options_.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
         solverOptions.minimizer_progress_to_stdout = options_.verbose;
         ceres::Solver::Summary summary;
-        ceres::Solve(solverOptions, problem_.get(), &summary);
+        ceres::Solve(solverOptions, &problem, &summary);
         if (options_.verbose) fmt::print(stderr, "{}\n", summary.BriefReport());
         if (!summary.IsSolutionUsable())
             throw Error(fmt::format("the fit failed: {}", summary.message));
-        return summary;
+        return {summary.num_successful_steps + summary.num_unsuccessful_steps,
+                summary.minimizer_time_in_seconds};
     }
 
-    // Sum over the used pixels of body(pixel, sum), in parallel.
+    // L^-1 with L L^T the Gram matrix of the instruments over the free natural coordinates.
+    Eigen::MatrixXd whitening(const std::vector<int>& free) const {
+        Eigen::MatrixXd gram = instrumentGram_(free, free);
+        const Eigen::Index n = gram.rows();
+        // An instrument that is 0 at every pixel makes its equation 0 everywhere; any scale does.
+        for (Eigen::Index i = 0; i < n; ++i)
+            if (!(gram(i, i) > 0)) gram(i, i) = 1;
+        const Eigen::VectorXd scale = gram.diagonal().cwiseSqrt().cwiseInverse();
+        Eigen::MatrixXd correlation = scale.asDiagonal() * gram * scale.asDiagonal();
+        // Collinear instruments: found unconstrained and held after this solve.
+        correlation.diagonal().array() += 1e-12;
+        const Eigen::LLT<Eigen::MatrixXd> llt(correlation);
+        return llt.matrixL().solve(Eigen::MatrixXd(scale.asDiagonal()));
+    }
+
+    double lossWeight(double squaredNorm) const {
+        double rho[3] = {0, 1, 0};
+        if (loss_) loss_->Evaluate(squaredNorm, rho);
+        return rho[1];
+    }
+
+    // The weighted residual weight (I(y) - observed) of pixel u in set k; with `jacobians`, also
+    // its weighted Jacobians per slot of the pixel, in scratch.jacobians[k].
+    Eigen::Vector3d residual(int k, const UsedPixel& u, const double* y, Scratch& scratch,
+                             bool jacobians) const {
+        const PathSet& paths = (*sets_[k])[u.view];
+        const std::span<const std::uint32_t> slots = pixelSlots(u);
+        Color3 predicted = Color3::Zero();
+        if (jacobians) {
+            std::vector<Jacobian>& j = scratch.jacobians[k];
+            j.resize(u.slotCount);
+            for (std::uint32_t b = 0; b < u.slotCount; ++b) {
+                predicted = replayNaturalJacobian<P>(paths, u.pixel, slots, y, slots[b],
+                                                     scratch.jets, j[b]);
+                j[b] *= u.weight;
+            }
+        } else {
+            for (std::uint32_t s : slots)
+                scratch.plain[s] = naturalToPhong<P>(y + std::size_t(s) * P);
+            predicted = replayPixel(paths, u.pixel, scratch.plain.data());
+        }
+        return (u.weight * (predicted - u.observed)).matrix();
+    }
+
+    // Sum over the first `count` used pixels of body(pixel index, sum, scratch), in parallel,
+    // deterministically.
     template <typename Value, typename Body>
-    Value sumOverPixels(const Value& zero, const Body& body) {
-        tbb::enumerable_thread_specific<Value> partial(zero);
-        arena_.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, prep_.pixels.size(), 512),
-                              [&](const tbb::blocked_range<std::size_t>& range) {
-                                  Value& sum = partial.local();
-                                  for (std::size_t i = range.begin(); i != range.end(); ++i)
-                                      body(prep_.pixels[i], sum);
-                              });
+    Value sumOverPixels(std::size_t count, const Value& zero, const Body& body) {
+        return arena_.execute([&] {
+            return tbb::parallel_deterministic_reduce(
+                tbb::blocked_range<std::size_t>(0, count, kPixelBlock), zero,
+                [&](const tbb::blocked_range<std::size_t>& range, Value sum) {
+                    Scratch scratch;
+                    scratch.jets.resize(slots_);
+                    scratch.plain.resize(slots_);
+                    for (std::size_t i = range.begin(); i != range.end(); ++i)
+                        body(i, sum, scratch);
+                    return sum;
+                },
+                [](Value a, const Value& b) {
+                    a += b;
+                    return a;
+                });
         });
-        Value total = zero;
-        for (const Value& v : partial) total += v;
-        return total;
     }
 
-    Information information(const std::vector<HeldParams>& held) {
+    // g(y) = sum over pixels and sets k of W_other Z_other^T r_k(y), and dg/dy if asked.
+    void momentSums(const double* y, Eigen::VectorXd& g, Eigen::MatrixXd* jacobian) {
+        const Eigen::Index size = Eigen::Index(slots_) * P;
+        const bool withJacobian = jacobian != nullptr;
+        const MomentSums zero{Eigen::VectorXd::Zero(size),
+                              withJacobian ? Eigen::MatrixXd::Zero(size, size) : Eigen::MatrixXd()};
+        MomentSums sums = sumOverPixels(
+            prep_.seeingMaterial, zero, [&](std::size_t i, MomentSums& sum, Scratch& scratch) {
+                const UsedPixel& u = prep_.pixels[i];
+                const std::span<const std::uint32_t> slots = pixelSlots(u);
+                for (int k = 0; k < 2; ++k) {
+                    const int other = 1 - k;
+                    const Eigen::Vector3d r = residual(k, u, y, scratch, withJacobian);
+                    const double w = lossWeights_[other][i];
+                    for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                        const Jacobian z = w * instruments_[other][u.slotBegin + a];
+                        const Eigen::Index row = Eigen::Index(slots[a]) * P;
+                        sum.g.template segment<P>(row) += z.transpose() * r;
+                        if (!withJacobian) continue;
+                        for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                            sum.jacobian.template block<P, P>(row, Eigen::Index(slots[b]) * P) +=
+                                z.transpose() * scratch.jacobians[k][b];
+                    }
+                }
+            });
+        g = sums.g + constantMoments_;
+        if (withJacobian) *jacobian = std::move(sums.jacobian);
+    }
+
+    // The sums at the current estimate (see Analysis). Keeps each set's Jacobians, residuals and
+    // loss weights there: the next instruments, and what the scores are computed from.
+    Analysis analyse(const std::vector<HeldParams>& held) {
         std::vector<double> y(std::size_t(slots_) * P);
         for (int s = 0; s < slots_; ++s)
             toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        const int sets = int(sets_.size());
+        const bool moments = !instrumental_ || !instruments_[0].empty();
+        for (int k = 0; k < sets; ++k) {
+            jacobians_[k].resize(prep_.slots.size());
+            residuals_[k].resize(prep_.pixels.size());
+            weights_[k].resize(prep_.pixels.size());
+        }
         const Eigen::Index size = Eigen::Index(slots_) * P;
-        const Information zero{Eigen::MatrixXd::Zero(size, size),
-                               Eigen::MatrixXd::Zero(size, size)};
-        return sumOverPixels(zero, [&](const UsedPixel& u, Information& sum) {
-            const std::span<const std::uint32_t> slots(prep_.slots.data() + u.slotBegin,
-                                                       u.slotCount);
-            std::vector<PhongParams<PackedJet>> theta(slots_);
-            std::vector<Eigen::Matrix<double, 3, P>> jacobians(u.slotCount);
-            Color3 predicted = Color3::Zero();
-            for (std::uint32_t b = 0; b < u.slotCount; ++b) {
-                predicted = replayNaturalJacobian<P>(paths_[u.view], u.pixel, slots, y.data(),
-                                                     slots[b], theta, jacobians[b]);
-                jacobians[b] *= u.weight;
-            }
-            const Eigen::Vector3d residual = (u.weight * (predicted - u.observed)).matrix();
-            double rho[3] = {0, 1, 0};
-            if (loss_) loss_->Evaluate(residual.squaredNorm(), rho);
-            for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                const Eigen::Matrix<double, P, 1> scoreA = jacobians[a].transpose() * residual;
-                for (std::uint32_t b = 0; b < u.slotCount; ++b) {
-                    const Eigen::Index row = Eigen::Index(slots[a]) * P;
-                    const Eigen::Index col = Eigen::Index(slots[b]) * P;
-                    sum.fisher.block<P, P>(row, col) +=
-                        rho[1] * jacobians[a].transpose() * jacobians[b];
-                    sum.scores.block<P, P>(row, col) +=
-                        rho[1] * rho[1] * scoreA *
-                        (jacobians[b].transpose() * residual).transpose();
+        const Analysis zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size),
+                            Eigen::MatrixXd(), Eigen::MatrixXd::Zero(size, size), 0.0};
+        Analysis result = sumOverPixels(
+            prep_.pixels.size(), zero, [&](std::size_t i, Analysis& sum, Scratch& scratch) {
+                const UsedPixel& u = prep_.pixels[i];
+                const std::span<const std::uint32_t> slots = pixelSlots(u);
+                const auto at = [&](std::uint32_t a) { return Eigen::Index(slots[a]) * P; };
+                Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+                Eigen::VectorXd& l = scratch.moment;
+                l.setZero(Eigen::Index(u.slotCount) * P);
+                for (int k = 0; k < sets; ++k) {
+                    const Eigen::Vector3d r = residual(k, u, y.data(), scratch, true);
+                    const std::vector<Jacobian>& j = scratch.jacobians[k];
+                    const double rho = lossWeight(r.squaredNorm());
+                    residuals_[k][i] = r;
+                    weights_[k][i] = rho;
+                    mean += r / sets;
+                    for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                        jacobians_[k][u.slotBegin + a] = j[a];
+                        l.segment<P>(Eigen::Index(a) * P) += rho / sets * j[a].transpose() * r;
+                        for (std::uint32_t b = 0; u.seesMaterial && b < u.slotCount; ++b)
+                            sum.gram.block<P, P>(at(a), at(b)) +=
+                                rho / sets * j[a].transpose() * j[b];
+                    }
                 }
-            }
-        });
+                if (!u.seesMaterial) return;
+                sum.squares += mean.squaredNorm() / (u.weight * u.weight);
+                for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                        sum.leastSquaresScores.block<P, P>(at(a), at(b)) +=
+                            l.segment<P>(Eigen::Index(a) * P) *
+                            l.segment<P>(Eigen::Index(b) * P).transpose();
+                if (!moments) return;
+                pixelMoment(i, u, scratch.moment, &scratch.momentJacobian);
+                for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                        sum.jacobian.block<P, P>(at(a), at(b)) +=
+                            scratch.momentJacobian.template block<P, P>(Eigen::Index(a) * P,
+                                                                        Eigen::Index(b) * P);
+            });
+        if (moments) result.scores = scores(result.jacobian, held);
+        return result;
     }
 
-    // Standard errors of the natural parameters per slot: Ceres' covariance of the internal
-    // coordinates (held ones have none), scaled by the residual variance 2 cost / (m - p), mapped
-    // by the delta method; or the sandwich estimate where that is larger (uncertainty.h). The
-    // pseudo-inverse covers the one singular point of the map (ks = 1, where u does not matter).
-    std::vector<std::vector<double>> naturalStd(const std::vector<HeldParams>& held,
-                                                double finalCost, const Information& info) {
-        const std::vector<double> sandwich =
-            sandwichVariances(info.fisher, info.scores, heldFlags(held));
-        std::vector<std::vector<double>> result(slots_, std::vector<double>(P, 0.0));
-        std::vector<std::pair<const double*, const double*>> pairs;
-        std::vector<int> covered;
-        for (int s = 0; s < slots_; ++s) {
-            if (!prep_.slotSeen[s] || int(heldCoordinates<P>(held[s]).size()) == P) continue;
-            pairs.emplace_back(block(s), block(s));
-            covered.push_back(s);
-        }
-        if (pairs.empty()) return result;
-        ceres::Covariance::Options covarianceOptions;
-        covarianceOptions.num_threads = threads_;
-        const auto dense = [&] {
-            covarianceOptions.algorithm_type = ceres::DENSE_SVD;
-            covarianceOptions.null_space_rank = -1;
-        };
-        if (freeParameters_ <= kDenseLimit) dense();
-        auto covariance = std::make_unique<ceres::Covariance>(covarianceOptions);
-        if (!covariance->Compute(pairs, problem_.get())) {
-            dense();
-            covariance = std::make_unique<ceres::Covariance>(covarianceOptions);
-            if (!covariance->Compute(pairs, problem_.get()))
-                throw Error("the covariance of the fitted parameters could not be computed");
-        }
-        const double residuals = 3.0 * double(prep_.pixels.size());
-        const double variance = 2 * finalCost / std::max(residuals - freeParameters_, 1.0);
-        for (int s : covered) {
-            Eigen::Matrix<double, P, P, Eigen::RowMajor> c;
-            covariance->GetCovarianceBlock(block(s), block(s), c.data());
-            const Eigen::Matrix<double, P, P> d = naturalJacobian<P>(block(s), held[s]);
-            const Eigen::Matrix<double, P, P> natural = variance * d * c * d.transpose();
-            for (int i = 0; i < P; ++i) {
-                const double v = std::max(natural(i, i), sandwich[std::size_t(s) * P + i]);
-                result[s][i] =
-                    isHeld(held[s], i) || !(v > 0) || !std::isfinite(v) ? 0 : std::sqrt(v);
+    // Pixel i's term m of the estimating equations and, if asked, its Jacobian, over the pixel's
+    // slots, from what the last analysis kept. Least squares' instruments are its own Jacobians.
+    void pixelMoment(std::size_t i, const UsedPixel& u, Eigen::VectorXd& m,
+                     Eigen::MatrixXd* jacobian) const {
+        const Eigen::Index n = Eigen::Index(u.slotCount) * P;
+        m.setZero(n);
+        if (jacobian != nullptr) jacobian->setZero(n, n);
+        for (int k = 0; k < int(sets_.size()); ++k) {
+            const int other = instrumental_ ? 1 - k : k;
+            const std::vector<Jacobian>& z = instrumental_ ? instruments_[other] : jacobians_[k];
+            const double w = instrumental_ ? lossWeights_[other][i] : weights_[k][i];
+            for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                const Jacobian za = w * z[u.slotBegin + a];
+                m.segment<P>(Eigen::Index(a) * P) += za.transpose() * residuals_[k][i];
+                for (std::uint32_t b = 0; jacobian != nullptr && b < u.slotCount; ++b)
+                    jacobian->block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P) +=
+                        za.transpose() * jacobians_[k][u.slotBegin + b];
             }
         }
+    }
+
+    // S = sum of m m^T over pixels, each m with its own pull on the estimate undone
+    // (uncertainty.h).
+    Eigen::MatrixXd scores(const Eigen::MatrixXd& jacobian, const std::vector<HeldParams>& held) {
+        const Eigen::MatrixXd inverse = freeInverse(jacobian, heldFlags(held));
+        const Eigen::Index size = jacobian.rows();
+        return sumOverPixels(
+            prep_.pixels.size(), Eigen::MatrixXd(Eigen::MatrixXd::Zero(size, size)),
+            [&](std::size_t i, Eigen::MatrixXd& sum, Scratch& scratch) {
+                const UsedPixel& u = prep_.pixels[i];
+                const std::span<const std::uint32_t> slots = pixelSlots(u);
+                std::vector<Eigen::Index> indices;
+                for (std::uint32_t s : slots)
+                    for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
+                // A pixel that sees no material does not pull on the estimate.
+                pixelMoment(i, u, scratch.moment,
+                            u.seesMaterial ? &scratch.momentJacobian : nullptr);
+                const Eigen::VectorXd m =
+                    u.seesMaterial ? leaveOneOutScore(scratch.momentJacobian,
+                                                      inverse(indices, indices), scratch.moment)
+                                   : scratch.moment;
+                sum(indices, indices) += m * m.transpose();
+            });
+    }
+
+    // Makes the Jacobians and loss weights the last analysis kept the instruments, and their Gram
+    // matrix the whitening's.
+    void adoptInstruments() {
+        const int sets = int(sets_.size());
+        for (int k = 0; k < sets; ++k) instruments_[k] = smoothed(jacobians_[k]);
+        lossWeights_ = weights_;
+        const std::vector<double> precision = precisions();
+        for (int k = 0; k < sets; ++k)
+            for (std::size_t i = 0; i < precision.size(); ++i) lossWeights_[k][i] *= precision[i];
+        // The moments of the pixels that see no material do not depend on the parameters.
+        constantMoments_.setZero(Eigen::Index(slots_) * P);
+        Eigen::VectorXd m;
+        for (std::size_t i = prep_.seeingMaterial; i < prep_.pixels.size(); ++i) {
+            const UsedPixel& u = prep_.pixels[i];
+            const std::span<const std::uint32_t> slots = pixelSlots(u);
+            pixelMoment(i, u, m, nullptr);
+            for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                constantMoments_.segment<P>(Eigen::Index(slots[a]) * P) +=
+                    m.segment<P>(Eigen::Index(a) * P);
+        }
+        const Eigen::Index size = Eigen::Index(slots_) * P;
+        instrumentGram_.setZero(size, size);
+        for (std::size_t i = 0; i < prep_.pixels.size(); ++i) {
+            const UsedPixel& u = prep_.pixels[i];
+            const std::span<const std::uint32_t> slots = pixelSlots(u);
+            for (int k = 0; k < sets; ++k)
+                for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                        instrumentGram_.block<P, P>(Eigen::Index(slots[a]) * P,
+                                                    Eigen::Index(slots[b]) * P) +=
+                            lossWeights_[k][i] / sets *
+                            instruments_[k][u.slotBegin + a].transpose() *
+                            instruments_[k][u.slotBegin + b];
+        }
+    }
+
+    // 1 / the variance of each pixel's residual, estimated from the two sets' difference at its
+    // neighbours (not the pixel itself, so the weight is independent of the residual it weights).
+    std::vector<double> precisions() {
+        const std::size_t count = prep_.pixels.size();
+        std::vector<double> d(count), precision(count);
+        double mean = 0;
+        for (std::size_t i = 0; i < count; ++i) {
+            d[i] = 0.5 * (residuals_[0][i] - residuals_[1][i]).squaredNorm();
+            mean += d[i] / double(count);
+        }
+        const double floor = std::max(1e-2 * mean, 1e-12 * prep_.rmsObserved * prep_.rmsObserved);
+        for (std::size_t i = 0; i < count; ++i) {
+            const UsedPixel& u = prep_.pixels[i];
+            const int width = prep_.widths[u.view], height = prep_.heights[u.view];
+            const int x = int(u.pixel) % width, y = int(u.pixel) / width;
+            double sum = 0;
+            int n = 0;
+            for (int yy = std::max(y - kInstrumentRadius, 0);
+                 yy <= std::min(y + kInstrumentRadius, height - 1); ++yy)
+                for (int xx = std::max(x - kInstrumentRadius, 0);
+                     xx <= std::min(x + kInstrumentRadius, width - 1); ++xx) {
+                    const std::int32_t q =
+                        prep_.index[u.view][std::size_t(yy) * std::size_t(width) + xx];
+                    if (q < 0 || std::size_t(q) == i) continue;
+                    sum += d[std::size_t(q)];
+                    ++n;
+                }
+            precision[i] = 1 / ((n > 0 ? sum / n : mean) + floor);
+        }
+        return precision;
+    }
+
+    // Jacobians averaged over the (2 kInstrumentRadius + 1)^2 pixels around each pixel (pixels
+    // not used count as 0). A few samples per pixel make a pixel's Jacobian as noisy as its
+    // value; instruments that noisy cost the estimate precision (its variance falls like
+    // 1 / spp^2 instead of 1 / spp), and any function of the other set is a valid instrument.
+    std::vector<Jacobian> smoothed(const std::vector<Jacobian>& jacobians) {
+        std::vector<Jacobian> out(jacobians.size(), Jacobian::Zero());
+        for (std::size_t view = 0; view < prep_.widths.size(); ++view) {
+            const int width = prep_.widths[view], height = prep_.heights[view];
+            const std::size_t pixels = std::size_t(width) * std::size_t(height);
+            std::vector<Jacobian> image, rows(pixels);
+            for (int s = 0; s < slots_; ++s) {
+                if (!prep_.slotSeen[s]) continue;
+                image.assign(pixels, Jacobian::Zero());
+                forEachEntry(view, s, [&](std::size_t entry, std::size_t p, const UsedPixel& u) {
+                    if (u.seesMaterial) image[p] = jacobians[entry];
+                });
+                // A separable box filter: rows, then columns.
+                arena_.execute([&] {
+                    tbb::parallel_for(0, height, [&](int y) {
+                        for (int x = 0; x < width; ++x) {
+                            Jacobian sum = Jacobian::Zero();
+                            for (int xx = std::max(x - kInstrumentRadius, 0);
+                                 xx <= std::min(x + kInstrumentRadius, width - 1); ++xx)
+                                sum += image[std::size_t(y) * width + xx];
+                            rows[std::size_t(y) * width + x] = sum;
+                        }
+                    });
+                    tbb::parallel_for(0, width, [&](int x) {
+                        for (int y = 0; y < height; ++y) {
+                            Jacobian sum = Jacobian::Zero();
+                            for (int yy = std::max(y - kInstrumentRadius, 0);
+                                 yy <= std::min(y + kInstrumentRadius, height - 1); ++yy)
+                                sum += rows[std::size_t(yy) * width + x];
+                            image[std::size_t(y) * width + x] = sum;
+                        }
+                    });
+                });
+                forEachEntry(view, s, [&](std::size_t entry, std::size_t p, const UsedPixel&) {
+                    const int x = int(p % std::size_t(width)), y = int(p / std::size_t(width));
+                    const int count = (std::min(x + kInstrumentRadius, width - 1) -
+                                       std::max(x - kInstrumentRadius, 0) + 1) *
+                                      (std::min(y + kInstrumentRadius, height - 1) -
+                                       std::max(y - kInstrumentRadius, 0) + 1);
+                    out[entry] = image[p] / count;
+                });
+            }
+        }
+        return out;
+    }
+
+    // body(entry in Prepared::slots, pixel, used pixel) for the used pixels of `view` that list
+    // `slot`.
+    template <typename Body>
+    void forEachEntry(std::size_t view, int slot, const Body& body) const {
+        for (const UsedPixel& u : prep_.pixels) {
+            if (u.view != view) continue;
+            for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                if (prep_.slots[u.slotBegin + a] == std::uint32_t(slot))
+                    body(u.slotBegin + a, std::size_t(u.pixel), u);
+        }
+    }
+
+        // Standard errors of the natural parameters per slot from the sandwich with these sums
+    // (uncertainty.h); 0 for the held ones.
+    std::vector<std::vector<double>> naturalStd(const Eigen::MatrixXd& jacobian,
+                                                const Eigen::MatrixXd& scores,
+                                                const std::vector<HeldParams>& held) const {
+        const std::vector<double> variance = sandwichVariances(jacobian, scores, heldFlags(held));
+        std::vector<std::vector<double>> result(slots_, std::vector<double>(P, 0.0));
+        for (int s = 0; s < slots_; ++s)
+            for (int i = 0; i < P; ++i) {
+                const double v = variance[std::size_t(s) * P + i];
+                result[s][i] = isHeld(held[s], i) || !(v > 0) ? 0 : std::sqrt(v);
+            }
         return result;
     }
 
@@ -535,51 +1065,37 @@ private:
         return m;
     }
 
-    double rmse(const std::vector<HeldParams>& held) {
-        std::vector<PhongMaterial> theta(slots_);
-        for (int s = 0; s < slots_; ++s) theta[s] = toPhong<P>(block(s), held[s]);
-        const double sum = sumOverPixels(0.0, [&](const UsedPixel& u, double& total) {
-            total +=
-                (replayPixel(paths_[u.view], u.pixel, theta.data()) - u.observed).square().sum();
-        });
-        return std::sqrt(sum / (3.0 * double(prep_.pixels.size())));
-    }
-
-    const std::vector<PathSet>& paths_;
     const std::vector<PhongMaterial>& start_;
     const FitOptions& options_;
     int threads_;
     int slots_;
+    bool instrumental_;
+    bool warmStart_;
+    std::vector<PathSet> pooled_;  // for least squares
+    SetLists sets_;
     Prepared prep_;
     std::unique_ptr<ceres::LossFunction> loss_;
     tbb::task_arena arena_;
     std::vector<double> x_;  // internal coordinates, P per slot
-    std::unique_ptr<ceres::Problem> problem_;
-    int freeParameters_ = 0;
+    // Per set, at the last analysis: weighted Jacobians (per pixel slot, in Prepared::slots'
+    // order), residuals and loss weights (per pixel).
+    std::array<std::vector<Jacobian>, 2> jacobians_;
+    std::array<std::vector<Eigen::Vector3d>, 2> residuals_;
+    std::array<std::vector<double>, 2> weights_;
+    // The same at the instrument point, and the instruments' Gram matrix (instrumental variables).
+    std::array<std::vector<Jacobian>, 2> instruments_;
+    std::array<std::vector<double>, 2> lossWeights_;
+    Eigen::MatrixXd instrumentGram_;
+    Eigen::VectorXd constantMoments_;  // g's terms from the pixels that see no material
 };
 
-// Whether the round's solution is where the round recorded (see FitOptions::tolerance).
-template <int P>
-bool converged(const std::vector<PhongMaterial>& recorded, const RoundOutcome& out,
-               const FitOptions& options) {
-    using L = BlockLayout<P>;
-    for (std::size_t s = 0; s < recorded.size(); ++s) {
-        const auto before = naturalFromPhong<P>(recorded[s]);
-        const auto after = naturalFromPhong<P>(out.materials[s].material());
-        for (int i = 0; i < P; ++i) {
-            const double change = std::abs(after[i] - before[i]);
-            const double scale =
-                i == L::kLogN ? 1.0 : std::max(std::abs(before[i]), kReflectanceFloor);
-            if (change > options.tolerance * scale &&
-                change > options.stdTolerance * out.naturalStd[s][i])
-                return false;
-        }
-    }
-    return true;
-}
+// The two path-set lists of a round, one set per view each.
+struct RoundSets {
+    const std::vector<PathSet>* first;
+    const std::vector<PathSet>* second;
+};
 
-using RecordAll =
-    std::function<const std::vector<PathSet>&(const std::vector<PhongMaterial>&, int round)>;
+using RecordAll = std::function<RoundSets(const std::vector<PhongMaterial>&, int round)>;
 
 template <int P>
 FitResult runRounds(const std::vector<Observation>& observations, const RecordAll& recordAll,
@@ -593,12 +1109,19 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     std::vector<HeldParams> held(start.size());
     for (int round = 0; round < maxRounds; ++round) {
         const auto roundBegin = std::chrono::steady_clock::now();
-        const std::vector<PathSet>& paths = recordAll(theta, round);
-        if (paths.size() != observations.size())
-            throw Error(fmt::format("the recorder returned {} path sets for {} views", paths.size(),
-                                    observations.size()));
+        const RoundSets sets = recordAll(theta, round);
         const double recordSeconds = secondsSince(roundBegin);
-        RoundSolver<P> solver(observations, paths, start, options, threads);
+        for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
+            if (paths->size() != observations.size())
+                throw Error(fmt::format("the recorder returned {} path sets for {} views",
+                                        paths->size(), observations.size()));
+            for (std::size_t v = 0; v < observations.size(); ++v)
+                checkPathSet((*paths)[v], observations[v], int(v), int(start.size()));
+        }
+        // Later rounds start where the last one ended, near enough for the instruments.
+        RoundSolver<P> solver(observations, *sets.first, *sets.second, start, options, threads,
+                              round == 0);
+        const std::vector<PhongMaterial> recorded = theta;
         RoundOutcome out = solver.solve(theta, held);
 
         FitRound r;
@@ -611,12 +1134,17 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         r.materials = out.materials;
         result.rounds.push_back(r);
         if (options.onRound) options.onRound(r);
-        result.converged = converged<P>(theta, out, options);
+        std::vector<Eigen::Matrix<double, P, 1>> before, after;
+        for (std::size_t s = 0; s < theta.size(); ++s) {
+            before.push_back(naturalFromPhong<P>(recorded[s]));
+            after.push_back(naturalFromPhong<P>(out.materials[s].material()));
+            theta[s] = out.materials[s].material();
+        }
+        result.converged = withinTolerance<P>(before, after, out.naturalStd, options);
         result.materials = out.materials;
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
-        for (std::size_t s = 0; s < theta.size(); ++s) theta[s] = out.materials[s].material();
         if (result.converged) break;
     }
     result.timeSeconds = secondsSince(begin);
@@ -645,22 +1173,24 @@ FitResult fit(const std::vector<Observation>& observations, const RecordAll& rec
 
 FitResult fitMaterials(const std::vector<Observation>& observations, const PathRecorder& record,
                        const std::vector<PhongMaterial>& start, const FitOptions& options) {
-    std::vector<PathSet> paths;
-    const RecordAll recordAll = [&](const std::vector<PhongMaterial>& theta,
-                                    int round) -> const std::vector<PathSet>& {
-        paths.clear();
-        for (std::size_t v = 0; v < observations.size(); ++v)
-            paths.push_back(record(int(v), theta, round));
-        return paths;
+    std::array<std::vector<PathSet>, 2> paths;
+    const RecordAll recordAll = [&](const std::vector<PhongMaterial>& theta, int round) {
+        for (int k = 0; k < 2; ++k) {
+            paths[k].clear();
+            for (std::size_t v = 0; v < observations.size(); ++v)
+                paths[k].push_back(record(int(v), theta, 2 * round + k));
+        }
+        return RoundSets{&paths[0], &paths[1]};
     };
     return fit(observations, recordAll, start, options, options.maxRounds);
 }
 
 FitResult fitPathSets(const std::vector<Observation>& observations,
-                      const std::vector<PathSet>& paths, const std::vector<PhongMaterial>& start,
-                      const FitOptions& options) {
-    const RecordAll recordAll = [&](const std::vector<PhongMaterial>&,
-                                    int) -> const std::vector<PathSet>& { return paths; };
+                      const std::vector<PathSet>& first, const std::vector<PathSet>& second,
+                      const std::vector<PhongMaterial>& start, const FitOptions& options) {
+    const RecordAll recordAll = [&](const std::vector<PhongMaterial>&, int) {
+        return RoundSets{&first, &second};
+    };
     return fit(observations, recordAll, start, options, 1);
 }
 

@@ -1,32 +1,53 @@
 #include "uncertainty.h"
 
+#include <Eigen/LU>
 #include <Eigen/QR>
 #include <cmath>
 
 namespace phongfit {
 
-std::vector<double> sandwichVariances(const Eigen::MatrixXd& fisher, const Eigen::MatrixXd& scores,
-                                      const std::vector<bool>& held) {
+Eigen::MatrixXd freeInverse(const Eigen::MatrixXd& jacobian, const std::vector<bool>& held) {
     std::vector<Eigen::Index> free;
-    for (Eigen::Index j = 0; j < fisher.rows(); ++j)
-        if (!held[j] && fisher(j, j) > 0) free.push_back(j);
-    std::vector<double> variance(fisher.rows(), 0.0);
-    if (free.empty()) return variance;
+    for (Eigen::Index j = 0; j < jacobian.rows(); ++j)
+        if (!held[j]) free.push_back(j);
     const Eigen::Index k = Eigen::Index(free.size());
-    // Unit-diagonal scaling, so the pseudo-inverse's rank decision is relative per parameter.
-    Eigen::VectorXd scale(k);
-    Eigen::MatrixXd f(k, k), b(k, k);
-    for (Eigen::Index i = 0; i < k; ++i) scale[i] = 1 / std::sqrt(fisher(free[i], free[i]));
-    for (Eigen::Index i = 0; i < k; ++i)
-        for (Eigen::Index j = 0; j < k; ++j) {
-            f(i, j) = fisher(free[i], free[j]) * scale[i] * scale[j];
-            b(i, j) = scores(free[i], free[j]) * scale[i] * scale[j];
-        }
-    const Eigen::MatrixXd inverse = f.completeOrthogonalDecomposition().pseudoInverse();
-    const Eigen::MatrixXd sandwich = inverse * b * inverse;
+    Eigen::MatrixXd g = jacobian(free, free);
+    // Rows (equations) and columns (parameters) scaled to unit norm, so the pseudo-inverse's rank
+    // decision is relative per parameter; a parameter no equation sees gets 0.
+    Eigen::VectorXd rowScale(k), colScale(k);
     for (Eigen::Index i = 0; i < k; ++i) {
-        const double v = sandwich(i, i) * scale[i] * scale[i];
-        variance[free[i]] = std::isfinite(v) && v > 0 ? v : 0;
+        const double row = g.row(i).norm(), col = g.col(i).norm();
+        rowScale[i] = row > 0 ? 1 / row : 0;
+        colScale[i] = col > 0 ? 1 / col : 0;
+    }
+    g = rowScale.asDiagonal() * g * colScale.asDiagonal();
+    const Eigen::MatrixXd scaled = colScale.asDiagonal() *
+                                   g.completeOrthogonalDecomposition().pseudoInverse() *
+                                   rowScale.asDiagonal();
+    Eigen::MatrixXd inverse = Eigen::MatrixXd::Zero(jacobian.rows(), jacobian.cols());
+    inverse(free, free) = scaled;
+    return inverse;
+}
+
+Eigen::VectorXd leaveOneOutScore(const Eigen::MatrixXd& pixelJacobian,
+                                 const Eigen::MatrixXd& inverse, const Eigen::VectorXd& score) {
+    const Eigen::Index n = score.size();
+    const Eigen::MatrixXd shrink = Eigen::MatrixXd::Identity(n, n) - pixelJacobian * inverse;
+    const Eigen::FullPivLU<Eigen::MatrixXd> lu(shrink);
+    if (!lu.isInvertible()) return score;
+    const Eigen::VectorXd corrected = lu.solve(score);
+    return corrected.allFinite() ? corrected : score;
+}
+
+std::vector<double> sandwichVariances(const Eigen::MatrixXd& jacobian,
+                                      const Eigen::MatrixXd& scores,
+                                      const std::vector<bool>& held) {
+    const Eigen::MatrixXd inverse = freeInverse(jacobian, held);
+    const Eigen::MatrixXd sandwich = inverse * scores * inverse.transpose();
+    std::vector<double> variance(jacobian.rows(), 0.0);
+    for (Eigen::Index i = 0; i < jacobian.rows(); ++i) {
+        const double v = sandwich(i, i);
+        variance[i] = !held[i] && std::isfinite(v) && v > 0 ? v : 0;
     }
     return variance;
 }

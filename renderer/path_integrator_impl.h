@@ -29,6 +29,9 @@ void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uin
     for (int depth = 1;; ++depth) {
         ++rays;
         const std::optional<Hit> hit = geometry_.intersect(ray);
+        // Diagnostic sinks learn which vertex the following contributions come from.
+        if constexpr (requires { sink.vertex(depth, 0); })
+            sink.vertex(depth, hit ? scene_.shapes[hit->shape].bsdf : -1);
         if (!hit) {
             const int env = lights_.environment();
             if (env >= 0) {

@@ -25,6 +25,13 @@ struct RenderArgs {
     RenderOptions options;
 };
 
+// A material as messages name it: its id, or where it is defined.
+std::string materialName(const Scene& scene, int bsdf) {
+    if (bsdf < 0) return "environment";
+    const BsdfDesc& b = scene.bsdfs[bsdf];
+    return b.id.empty() ? fmt::format("{} at {}", b.type, b.loc.str()) : b.id;
+}
+
 Image toImage(const RenderResult& r) {
     Image image(r.width, r.height);
     image.rgb = r.rgb;
@@ -70,7 +77,15 @@ void runRender(const RenderArgs& args) {
         {"mrays_per_s", s.rays / s.seconds / 1e6},
         {"samples_per_s", s.samples / s.seconds},
         {"non_finite_samples", s.nonFinite},
+        {"non_finite_first", nlohmann::json::array()},
     };
+    for (const NonFiniteSample& n : s.nonFiniteFirst) {
+        const std::string material = materialName(renderer.scene(), n.bsdf);
+        sidecar["non_finite_first"].push_back({{"pixel", {n.x, n.y}},
+                                               {"sample", n.sample},
+                                               {"depth", n.depth},
+                                               {"material", material}});
+    }
     writeAtomically(args.output + ".json", [&](const std::filesystem::path& tmp) {
         std::ofstream(tmp) << sidecar.dump(2) << "\n";
     });
@@ -78,8 +93,13 @@ void runRender(const RenderArgs& args) {
     fmt::print("rendered {}x{} at {} spp in {:.2f} s: {:.1f} Mrays/s, {:.2f} Msamples/s -> {}\n",
                result.width, result.height, s.spp, s.seconds, s.rays / s.seconds / 1e6,
                s.samples / s.seconds / 1e6, args.output);
-    if (s.nonFinite > 0)
-        fmt::print("warning: {} samples had a non-finite value and were left out\n", s.nonFinite);
+    if (s.nonFinite > 0) {
+        const NonFiniteSample& n = s.nonFiniteFirst.front();
+        fmt::print("warning: {} samples had a non-finite value and were left out (the first at "
+                   "pixel ({}, {}), path depth {}, material '{}'; all in {}.json)\n",
+                   s.nonFinite, n.x, n.y, n.depth, materialName(renderer.scene(), n.bsdf),
+                   args.output);
+    }
     if (s.interrupted)
         fmt::print("interrupted: the image holds {} of {} samples ({:.1f}%)\n", s.samples,
                    std::uint64_t(s.spp) * result.width * result.height,

@@ -1,12 +1,17 @@
 #include "renderer.h"
 
+#include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <tuple>
 
 #include "defensive_sampler.h"
 #include "error.h"
@@ -48,6 +53,39 @@ struct RadianceSink {
     void add(const Color3& c, std::span<const PathVertex>) { sum += c; }
 };
 
+// A sample must stay finite in the float image, not only in double.
+bool representable(const Color3& c) {
+    return (c.abs() <= double(std::numeric_limits<float>::max())).all();
+}
+
+// Replays a sample to find the vertex at which its sum stopped being representable.
+struct DiagnosingSink {
+    NonFiniteSample& where;  // gets depth and bsdf
+    Color3 sum = Color3::Zero();
+    int depth = 0, bsdf = -1;  // of the vertex being traced
+    bool found = false;
+    void vertex(int d, int b) { depth = d, bsdf = b; }
+    void add(const Color3& c, std::span<const PathVertex>) {
+        sum += c;
+        if (found || representable(sum)) return;
+        found = true;
+        where.depth = depth;
+        where.bsdf = bsdf;
+    }
+};
+
+constexpr std::size_t kNonFiniteReported = 10;
+
+bool pathOrder(const NonFiniteSample& a, const NonFiniteSample& b) {
+    return std::tie(a.y, a.x, a.sample) < std::tie(b.y, b.x, b.sample);
+}
+
+// Keeps the first kNonFiniteReported samples in path order, whatever order they arrive in.
+void keepFirst(std::vector<NonFiniteSample>& list, const NonFiniteSample& s) {
+    list.insert(std::upper_bound(list.begin(), list.end(), s, pathOrder), s);
+    if (list.size() > kNonFiniteReported) list.pop_back();
+}
+
 template <typename F>
 void runInArena(int threads, F&& f) {
     tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
@@ -84,6 +122,7 @@ RenderResult Renderer::render(const RenderOptions& options) const {
     std::vector<std::uint32_t> count(pixels, 0);
     tbb::combinable<std::uint64_t> rays([] { return std::uint64_t(0); });
     tbb::combinable<std::uint64_t> nonFinite([] { return std::uint64_t(0); });
+    tbb::combinable<std::vector<NonFiniteSample>> nonFiniteFirst;
     const std::vector<Tile> tiles = makeTiles(width, height);
 
     // Passes over the whole image, so an interrupt leaves every pixel with samples: the first pass
@@ -112,8 +151,14 @@ RenderResult Renderer::render(const RenderOptions& options) const {
                                 RadianceSink sink;
                                 integrator.trace(camera_.generateRay(film.x(), film.y()), rng, s,
                                                  sink, rayCount);
-                                if (!sink.sum.allFinite()) {
+                                if (!representable(sink.sum)) {
                                     ++nonFinite.local();
+                                    NonFiniteSample where{x, y, s};
+                                    DiagnosingSink diagnosis{where};
+                                    std::uint64_t replayRays = 0;
+                                    integrator.trace(camera_.generateRay(film.x(), film.y()), rng,
+                                                     s, diagnosis, replayRays);
+                                    keepFirst(nonFiniteFirst.local(), where);
                                     continue;
                                 }
                                 for (int c = 0; c < 3; ++c) {
@@ -151,6 +196,9 @@ RenderResult Renderer::render(const RenderOptions& options) const {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     result.stats.rays = rays.combine(std::plus<>());
     result.stats.nonFinite = nonFinite.combine(std::plus<>());
+    nonFiniteFirst.combine_each([&](const std::vector<NonFiniteSample>& list) {
+        for (const NonFiniteSample& s : list) keepFirst(result.stats.nonFiniteFirst, s);
+    });
     result.stats.spp = spp;
     result.stats.interrupted = interrupted;
     return result;
@@ -181,6 +229,37 @@ struct RecordingSink {
     }
 };
 
+// Counts what a path would record, keeping nothing.
+struct CountingSink {
+    std::uint64_t terms = 0, vertices = 0;
+    void add(const Color3&, std::span<const PathVertex> v) {
+        if (v.empty()) return;
+        ++terms;
+        vertices += v.size();
+    }
+};
+
+// Bytes a recording needs at its peak (the tiles' records and the assembled set coexist), from a
+// pilot of one path in each of up to 4096 pixels spread over the film.
+double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
+                      const SensorDesc& sensor, std::uint64_t seed, int spp) {
+    const std::size_t pixels = std::size_t(camera.width()) * camera.height();
+    const std::size_t pilots = std::min<std::size_t>(pixels, 4096);
+    CountingSink sink;
+    std::uint64_t rays = 0;
+    for (std::size_t k = 0; k < pilots; ++k) {
+        const std::size_t p = k * pixels / pilots;
+        const int x = int(p % camera.width()), y = int(p / camera.width());
+        const CounterRng rng(seed, std::uint32_t(p));
+        const Vec2d film = filmPosition(sensor, x, y, rng.uniform(0, 0), rng.uniform(0, 1));
+        integrator.trace(camera.generateRay(film.x(), film.y()), rng, 0, sink, rays);
+    }
+    const double perSample = (double(sink.terms) * sizeof(PathTerm) +
+                              double(sink.vertices) * sizeof(PathVertex)) / double(pilots);
+    const double perPixel = 2 * sizeof(Color<float>) + 3 * sizeof(std::uint32_t) + 8;
+    return double(pixels) * (perPixel + 2 * perSample * spp);
+}
+
 }  // namespace
 
 PathSet Renderer::record(const RecordOptions& options) const {
@@ -198,6 +277,16 @@ PathSet Renderer::record(const RecordOptions& options) const {
     const PathIntegrator integrator(scene_, *geometry_, *lights_, materials, slots, *sampler,
                                     defensive,
                                     {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, true});
+
+    // Refuse what would exhaust memory before trying: half the machine's is the budget.
+    const double bytes =
+        recordingBytes(integrator, camera_, scene_.sensor, options.seed, options.spp);
+    const double budget = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    if (bytes > budget)
+        throw Error(fmt::format(
+            "recording {} paths per pixel of the {}x{} film would take about {:.1f} GB, more than "
+            "half of this machine's memory ({:.1f} GB): lower --spp, or the film size",
+            options.spp, camera_.width(), camera_.height(), bytes / 1e9, 2 * budget / 1e9));
 
     const int width = camera_.width(), height = camera_.height();
     const std::vector<Tile> tiles = makeTiles(width, height);

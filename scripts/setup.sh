@@ -8,6 +8,9 @@ packages=(
   libceres-dev libopencv-dev libopenexr-dev libembree-dev libeigen3-dev libtbb-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev libpugixml-dev libtinyobjloader-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  # scripts/fuzz.sh and scripts/sanitize.sh: libFuzzer and the sanitizer runtimes, and
+  # llvm-symbolizer for readable reports.
+  clang libclang-rt-14-dev llvm
 )
 
 missing=()

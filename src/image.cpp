@@ -33,10 +33,21 @@ void requireReadableFile(const std::string& path, const char* what) {
         throw Error(fmt::format("cannot read {} '{}': no such file", what, path));
 }
 
+// A header can claim any size, and a decoded pixel takes 13 bytes: refuse before allocating.
+constexpr std::int64_t kMaxImagePixels = std::int64_t(1) << 26;
+
+void requireImageSize(const std::string& path, std::int64_t width, std::int64_t height) {
+    if (width > kMaxImagePixels || height > kMaxImagePixels || width * height > kMaxImagePixels)
+        throw Error(fmt::format("image '{}' is {}x{} pixels (allowed: up to {} pixels)", path,
+                                width, height, kMaxImagePixels));
+}
+
 Image readExr(const std::string& path) {
     try {
         Imf::InputFile file(path.c_str());
         const Imath::Box2i window = file.header().dataWindow();
+        requireImageSize(path, std::int64_t(window.max.x) - window.min.x + 1,
+                         std::int64_t(window.max.y) - window.min.y + 1);
         Image image(window.max.x - window.min.x + 1, window.max.y - window.min.y + 1);
         const Imf::ChannelList& channels = file.header().channels();
         const char* names[3] = {"R", "G", "B"};
@@ -144,6 +155,7 @@ Image readLdr(const std::string& path, const ReadOptions& options) {
     // ANYDEPTH keeps 16-bit values, ANYCOLOR keeps grey as grey; EXIF orientation is applied, so
     // the pixels are oriented as viewers show them.
     const cv::Mat mat = readWithOpenCv(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR, "image");
+    requireImageSize(path, mat.cols, mat.rows);
     Image image(mat.cols, mat.rows);
     switch (mat.depth()) {
         case CV_8U:

@@ -3,8 +3,11 @@
 #include <fmt/format.h>
 #include <tiny_obj_loader.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <utility>
 
@@ -25,13 +28,24 @@ TriangleMesh loadObjMesh(const std::string& path, const std::string& context) {
     if (!std::filesystem::is_regular_file(path, ec))
         throw Error(
             fmt::format("{}: OBJ file '{}' does not exist or is not a file", context, path));
+    const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+    if (!ec && bytes > kMaxObjBytes)
+        throw Error(fmt::format("{}: OBJ file '{}' is {} MiB (allowed: up to {} MiB)", context,
+                                path, bytes >> 20, kMaxObjBytes >> 20));
+    std::ifstream in(path);
+    if (!in)
+        throw Error(fmt::format("{}: cannot open OBJ file '{}': {}", context, path,
+                                std::strerror(errno)));
+    return readObjMesh(in, path, context);
+}
 
+TriangleMesh readObjMesh(std::istream& in, const std::string& path, const std::string& context) {
     tinyobj::attrib_t attrib;
     std::vector<tinyobj::shape_t> shapes;
     std::vector<tinyobj::material_t> materials;
     std::string warn, err;
-    const std::string mtlDir = std::filesystem::path(path).parent_path().string() + "/";
-    if (!tinyobj::LoadObj(&attrib, &shapes, &materials, &warn, &err, path.c_str(), mtlDir.c_str(),
+    // No material reader: materials are ignored, and `mtllib` could name any file (/dev/zero).
+    if (!tinyobj::LoadObj(&attrib, &shapes, &materials, &warn, &err, &in, /*readMatFn=*/nullptr,
                           /*triangulate=*/true))
         throw Error(
             fmt::format("{}: cannot read OBJ file '{}': {}", context, path, firstLine(err)));
@@ -68,6 +82,9 @@ TriangleMesh loadObjMesh(const std::string& path, const std::string& context) {
     }
     if (warn.find("invalid vertex index") != std::string::npos)
         throw malformed("a polygon has an out-of-range vertex index");
+    if (cornerCount / 3 > kMaxMeshTriangles)
+        throw Error(fmt::format("{}: OBJ file '{}' has {} triangles (allowed: up to {})", context,
+                                path, cornerCount / 3, kMaxMeshTriangles));
     if (cornerCount == 0)
         throw Error(
             fmt::format("{}: OBJ file '{}' has no valid triangles (allowed: a mesh with at "

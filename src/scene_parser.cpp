@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <pugixml.hpp>
 #include <sstream>
@@ -28,7 +29,20 @@ namespace {
 using Vars = std::map<std::string, std::string>;
 using Names = std::initializer_list<const char*>;
 
+// Limits with clear errors instead of memory or time exhaustion (the render command's flags allow
+// the same ranges). A film of kMaxFilmPixels takes about 3 GB to render.
 constexpr int kMaxFilmSize = 16384;
+constexpr long kMaxFilmPixels = 1L << 25;
+constexpr int kMaxSampleCount = 1 << 20;
+constexpr int kMaxDepth = 1000;
+constexpr std::size_t kMaxSceneTriangles = kMaxMeshTriangles;
+// Embree works in float: world-space geometry must stay well inside its range.
+constexpr double kMaxCoordinate = 1e30;
+// Defaults may use earlier defaults, so expansion can grow a value exponentially ("billion
+// laughs"); no honest value comes near this.
+constexpr std::size_t kMaxExpandedLength = 1 << 20;
+// Meshes live in OBJ files; the XML parser's tree takes several times the text.
+constexpr std::uintmax_t kMaxSceneBytes = std::uintmax_t(64) << 20;
 constexpr Names kParamTags = {"float",    "integer", "boolean", "string",   "rgb",
                               "spectrum", "point",   "vector",  "transform"};
 
@@ -472,6 +486,29 @@ TriangleMesh transformed(TriangleMesh mesh, const Eigen::Affine3d& toWorld) {
     return mesh;
 }
 
+// The largest absolute world-space coordinate the shape reaches (infinity if any is not finite).
+double worldExtent(const ShapeDesc& shape) {
+    constexpr double kInfinity = std::numeric_limits<double>::infinity();
+    const auto extent = [](const auto& v) {
+        return v.allFinite() ? double(v.cwiseAbs().maxCoeff()) : kInfinity;
+    };
+    double e = 0;
+    switch (shape.type) {
+        case ShapeDesc::Type::Sphere:
+            e = extent(shape.center) + (std::isfinite(shape.radius) ? shape.radius : kInfinity);
+            break;
+        case ShapeDesc::Type::Disk:
+            e = extent(shape.toWorld.translation()) + extent(shape.toWorld.linear());
+            break;
+        default:
+            for (const Vec3f& v : shape.mesh.positions) e = std::max(e, extent(v));
+            for (const Vec3f& v : shape.mesh.normals)
+                if (!v.allFinite()) e = kInfinity;
+            break;
+    }
+    return e;
+}
+
 class Parser {
   public:
     Parser(const std::string& text, const std::string& file, const Vars& defines,
@@ -584,6 +621,11 @@ class Parser {
             if (integrator.rrDepth < 1)
                 ctx_.fail(p.node("rrDepth"),
                           fmt::format("rrDepth {} is invalid (allowed: >= 1)", integrator.rrDepth));
+            for (const auto& [name, depth] : {std::pair{"maxDepth", integrator.maxDepth},
+                                              std::pair{"rrDepth", integrator.rrDepth}})
+                if (depth > kMaxDepth)
+                    ctx_.fail(p.node(name), fmt::format("{} {} is too large (allowed: up to {})",
+                                                        name, depth, kMaxDepth));
         } else {
             // The renderer runs `direct` as a path tracer that stops after direct illumination.
             integrator.maxDepth = 2;
@@ -618,6 +660,10 @@ class Parser {
                                                      axis));
         sensor.fovAxis = it->second;
         sensor.toWorld = p.getTransform("toWorld");
+        if (!(sensor.toWorld.translation().cwiseAbs().maxCoeff() <= kMaxCoordinate))
+            ctx_.fail(p.node("toWorld"), fmt::format("the camera is placed beyond +-{:g} (allowed: "
+                                                     "coordinates within +-{:g})",
+                                                     kMaxCoordinate, kMaxCoordinate));
         p.finish();
 
         bool haveSampler = false, haveFilm = false;
@@ -643,6 +689,11 @@ class Parser {
         if (count < 1)
             ctx_.fail(p.node("sampleCount"),
                       fmt::format("sampleCount {} is invalid (allowed: >= 1)", count));
+        if (count > kMaxSampleCount)
+            ctx_.fail(p.node("sampleCount"),
+                      fmt::format("sampleCount {} is too large (allowed: up to {}; --spp overrides "
+                                  "it)",
+                                  count, kMaxSampleCount));
         scene_.sensor.sampleCount = count;
         p.finish();
         registerId(n, "sampler", 0);
@@ -661,6 +712,11 @@ class Parser {
                 ctx_.fail(p.node(name), fmt::format("{} {} is out of range (allowed: 1 to {})",
                                                     name, *size, kMaxFilmSize));
         }
+        const long pixels = long(sensor.width) * sensor.height;
+        if (pixels > kMaxFilmPixels)
+            ctx_.fail(n, fmt::format("the film has {}x{} = {} pixels (allowed: up to {}, e.g. "
+                                     "8192x4096)",
+                                     sensor.width, sensor.height, pixels, kMaxFilmPixels));
         p.finish();
         if (nested.size() > 1)
             ctx_.fail(nested[1], "a second <rfilter> in the film (allowed: one)");
@@ -781,6 +837,15 @@ class Parser {
             if (faceNormals) mesh.normals.clear();
             shape.mesh = transformed(std::move(mesh), p.getTransform("toWorld"));
         }
+        if (worldExtent(shape) > kMaxCoordinate)
+            ctx_.fail(n, fmt::format("the shape reaches {:g} in world space (allowed: coordinates "
+                                     "and sizes within +-{:g}, as the renderer works in float)",
+                                     worldExtent(shape), kMaxCoordinate));
+        triangles_ += shape.mesh.indices.size() / 3;
+        if (triangles_ > kMaxSceneTriangles)
+            ctx_.fail(n, fmt::format("the scene has {} triangles with this shape (allowed: up to "
+                                     "{})",
+                                     triangles_, kMaxSceneTriangles));
         p.finish();
 
         for (const pugi::xml_node c : nested) {
@@ -869,6 +934,7 @@ class Parser {
     pugi::xml_node root_;
     Scene scene_;
     std::map<std::string, IdEntry> ids_;
+    std::size_t triangles_ = 0;
 };
 
 }  // namespace
@@ -897,6 +963,10 @@ std::string expandVariables(const std::string& value, const Vars& variables,
                 fmt::format("{}: undefined variable '${}' (define it with <default "
                             "name=\"{}\" value=\"...\"/> or -D {}=...)",
                             where, name, name, name));
+        if (out.size() + it->second.size() > kMaxExpandedLength)
+            throw Error(fmt::format("{}: the variables in '{}' expand to over 1 MiB of text "
+                                    "(allowed: up to {} characters)",
+                                    where, value.substr(0, 40), kMaxExpandedLength));
         out += it->second;
         i = j;
     }
@@ -918,6 +988,10 @@ Scene loadScene(const std::string& path, const Vars& defines) {
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec))
         throw Error(fmt::format("cannot read scene file '{}': it is a directory", path));
+    const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+    if (!ec && bytes > kMaxSceneBytes)
+        throw Error(fmt::format("scene file '{}' is {} MiB (allowed: up to {} MiB)", path,
+                                bytes >> 20, kMaxSceneBytes >> 20));
     std::ifstream in(path, std::ios::binary);
     if (!in)
         throw Error(fmt::format("cannot open scene file '{}': {}", path, std::strerror(errno)));

@@ -127,6 +127,17 @@ PhongMaterial material(const Color3& kd, const Color3& ks, double n) {
     return m;
 }
 
+// `exact` recorded with few samples per pixel: every term's constant times an independent Gamma
+// variable of mean 1 and relative standard deviation 1 / sqrt(shape), as Monte Carlo weights are
+// (positive, skewed, 50-100% relative error at a few samples per pixel).
+PathSet noisy(const PathSet& exact, unsigned seed, double shape = 2) {
+    PathSet ps = exact;
+    std::mt19937 rng(seed);
+    std::gamma_distribution<double> weight(shape, 1 / shape);
+    for (PathTerm& t : ps.terms) t.constant *= float(weight(rng));
+    return ps;
+}
+
 SphereScene threeLights() {
     SphereScene scene;
     scene.lights = {{Vec3d(0.3, 0.4, 1), Color3(3, 3, 3)},
@@ -274,6 +285,40 @@ TEST(Uncertainty, SandwichEqualsClassicUnderEqualNoise) {
     EXPECT_GT(held[0], 0.0);
 }
 
+TEST(Uncertainty, SandwichOfInstrumentalVariables) {
+    // G = Z^T J is not symmetric: the sandwich is G^-1 S G^-T.
+    Eigen::MatrixXd g(3, 3), s(3, 3);
+    g << 2, 0.5, 0.1, -0.3, 1.5, 0.2, 0.4, 0.1, 3;
+    s << 1, 0.2, 0.1, 0.2, 2, 0.3, 0.1, 0.3, 0.5;
+    const Eigen::MatrixXd expected = g.inverse() * s * g.inverse().transpose();
+    const std::vector<double> v = sandwichVariances(g, s, {false, false, false});
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(v[i], expected(i, i), 1e-12);
+    const Eigen::MatrixXd inverse = freeInverse(g, {false, true, false});
+    EXPECT_EQ(inverse.row(1).norm() + inverse.col(1).norm(), 0.0);
+    const Eigen::Matrix2d kept = g({0, 2}, {0, 2});
+    EXPECT_LT((inverse({0, 2}, {0, 2}) - kept.inverse()).norm(), 1e-12);
+}
+
+TEST(Uncertainty, LeaveOneOutScoreUndoesAPixelsPullOnTheFit) {
+    // A line fitted to points, one far out (high leverage): its score from the fit with it,
+    // corrected, equals its score at the fit without it.
+    Eigen::MatrixXd j(6, 2);
+    Eigen::VectorXd y(6);
+    j << 1, 0, 1, 1, 1, 2, 1, 3, 1, 4, 1, 12;
+    y << 0.1, 1.2, 1.9, 3.2, 3.9, 9.0;
+    const auto fit = [](const Eigen::MatrixXd& a, const Eigen::VectorXd& b) {
+        return Eigen::VectorXd((a.transpose() * a).inverse() * a.transpose() * b);
+    };
+    const Eigen::VectorXd all = fit(j, y), withoutLast = fit(j.topRows(5), y.head(5));
+    const Eigen::MatrixXd g = j.transpose() * j;
+    const Eigen::VectorXd jp = j.row(5).transpose();
+    const Eigen::VectorXd fitted = jp * (jp.dot(all) - y[5]);
+    const Eigen::VectorXd corrected = leaveOneOutScore(jp * jp.transpose(), g.inverse(), fitted);
+    const Eigen::VectorXd expected = jp * (jp.dot(withoutLast) - y[5]);
+    EXPECT_LT((corrected - expected).norm(), 1e-9 * expected.norm());
+    EXPECT_GT((fitted - expected).norm(), 0.5 * expected.norm());  // the leverage is large
+}
+
 // ---- Recovery
 
 TEST(Fitter, RecoversFromFarStartOnExactData) {
@@ -281,7 +326,7 @@ TEST(Fitter, RecoversFromFarStartOnExactData) {
     const Observation obs = observe(ps, {kTruth});
     for (double nStart : {6000.0, 0.6}) {
         const PhongMaterial start = material(kTruth.ks, kTruth.kd, nStart);  // kd and ks swapped
-        const FitResult r = fitPathSets({obs}, {ps}, {start});
+        const FitResult r = fitPathSets({obs}, {ps}, {ps}, {start});
         expectFinite(r);
         ASSERT_EQ(r.materials.size(), 1u);
         expectRecovered(r.materials[0], kTruth, 1e-3);
@@ -295,7 +340,7 @@ TEST(Fitter, NoisyDataWithinThreeStandardErrors) {
     const PathSet ps = makePaths(threeLights());
     const Observation obs = observe(ps, {kTruth}, 0.01, 11);
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
-    const FitResult r = fitPathSets({obs}, {ps}, {start});
+    const FitResult r = fitPathSets({obs}, {ps}, {ps}, {start});
     expectFinite(r);
     const MaterialFit& m = r.materials[0];
     EXPECT_TRUE(m.unconstrained.empty());
@@ -319,7 +364,7 @@ TEST(Fitter, GreyModeSharesKdAndKsAcrossChannels) {
     FitOptions options;
     options.grey = true;
     const FitResult r =
-        fitPathSets({observe(ps, {truth})}, {ps},
+        fitPathSets({observe(ps, {truth})}, {ps}, {ps},
                     {material(Color3::Constant(0.2), Color3::Constant(0.6), 5)}, options);
     expectFinite(r);
     const MaterialFit& m = r.materials[0];
@@ -332,7 +377,7 @@ TEST(Fitter, GreyModeSharesKdAndKsAcrossChannels) {
 TEST(Fitter, RecoversEnergyConservingBoundary) {
     const PathSet ps = makePaths(threeLights());
     const PhongMaterial truth = material(Color3(0.3, 0.6, 0.1), Color3(0.7, 0.4, 0.9), 25);
-    const FitResult r = fitPathSets({observe(ps, {truth})}, {ps},
+    const FitResult r = fitPathSets({observe(ps, {truth})}, {ps}, {ps},
                                     {material(Color3::Constant(0.3), Color3::Constant(0.3), 200)});
     expectFinite(r);
     expectRecovered(r.materials[0], truth, 1e-3);
@@ -344,7 +389,7 @@ TEST(Fitter, WithoutSpecularTheExponentIsUnconstrainedAndHeld) {
     const PhongMaterial truth = material(Color3(0.6, 0.5, 0.4), Color3::Zero(), 10);
     const PhongMaterial start = material(Color3(0.2, 0.2, 0.2), Color3(0.3, 0.3, 0.3), 50);
     for (double sigma : {0.0, 0.01}) {
-        const FitResult r = fitPathSets({observe(ps, {truth}, sigma)}, {ps}, {start});
+        const FitResult r = fitPathSets({observe(ps, {truth}, sigma)}, {ps}, {ps}, {start});
         expectFinite(r);
         const MaterialFit& m = r.materials[0];
         EXPECT_EQ(m.unconstrained, std::vector<std::string>{"n"}) << "sigma " << sigma;
@@ -370,7 +415,7 @@ TEST(Fitter, LobeThatReachesNoPixelLeavesSpecularUnconstrained) {
     }
     const PhongMaterial truth = material(Color3(0.5, 0.4, 0.3), Color3(0.3, 0.3, 0.3), 1e6);
     const PhongMaterial start = material(Color3(0.2, 0.2, 0.2), Color3(0.2, 0.1, 0.2), 3e5);
-    const FitResult r = fitPathSets({observe(ps, {truth})}, {ps}, {start});
+    const FitResult r = fitPathSets({observe(ps, {truth})}, {ps}, {ps}, {start});
     expectFinite(r);
     const MaterialFit& m = r.materials[0];
     EXPECT_TRUE(contains(m.unconstrained, "ks"));
@@ -390,7 +435,7 @@ TEST(Fitter, ChannelNoLightReachesIsUnconstrainedPerChannel) {
     for (Light& light : scene.lights) light.irradiance[2] = 0;
     const PathSet ps = makePaths(scene);
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
-    const FitResult r = fitPathSets({observe(ps, {kTruth})}, {ps}, {start});
+    const FitResult r = fitPathSets({observe(ps, {kTruth})}, {ps}, {ps}, {start});
     expectFinite(r);
     const MaterialFit& m = r.materials[0];
     EXPECT_EQ(m.unconstrained, (std::vector<std::string>{"kd.b", "ks.b"}));
@@ -426,8 +471,8 @@ TEST(Fitter, IgnoresMaskedAndNonFinitePixels) {
     maskedClean.valid[nonFinitePixel] = 0;
 
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
-    const FitResult r = fitPathSets({garbage}, {ps}, {start});
-    const FitResult reference = fitPathSets({maskedClean}, {ps}, {start});
+    const FitResult r = fitPathSets({garbage}, {ps}, {ps}, {start});
+    const FitResult reference = fitPathSets({maskedClean}, {ps}, {ps}, {start});
     expectFinite(r);
     expectRecovered(r.materials[0], kTruth, 1e-3);
     for (int c = 0; c < 3; ++c) {
@@ -451,8 +496,8 @@ TEST(Fitter, RobustLossResistsOutliers) {
     FitOptions cauchy;
     cauchy.loss = parseLoss("cauchy");
     cauchy.lossScale = 0.02;
-    const FitResult robust = fitPathSets({obs}, {ps}, {start}, cauchy);
-    const FitResult plain = fitPathSets({obs}, {ps}, {start});
+    const FitResult robust = fitPathSets({obs}, {ps}, {ps}, {start}, cauchy);
+    const FitResult plain = fitPathSets({obs}, {ps}, {ps}, {start});
     expectFinite(robust);
     expectRecovered(robust.materials[0], kTruth, 1e-2);
     EXPECT_GT(std::abs(plain.materials[0].kd[2] - kTruth.kd[2]),
@@ -473,7 +518,7 @@ TEST(Fitter, TwoMaterialsWithInterreflection) {
     const std::vector<PhongMaterial> start = {
         material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20),
         material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20)};
-    const FitResult r = fitPathSets({observe(ps, truth)}, {ps}, start);
+    const FitResult r = fitPathSets({observe(ps, truth)}, {ps}, {ps}, start);
     expectFinite(r);
     ASSERT_EQ(r.materials.size(), 2u);
     for (int s = 0; s < 2; ++s) {
@@ -504,26 +549,27 @@ TEST(Fitter, ViewsAreFittedJointly) {
         obsB.valid[p] = lobeVisible(b, p);
     }
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
-    const FitResult aloneA = fitPathSets({obsA}, {a}, {start});
+    const FitResult aloneA = fitPathSets({obsA}, {a}, {a}, {start});
     EXPECT_TRUE(contains(aloneA.materials[0].unconstrained, "n"));
-    const FitResult joint = fitPathSets({obsA, obsB}, {a, b}, {start});
+    const FitResult joint = fitPathSets({obsA, obsB}, {a, b}, {a, b}, {start});
     expectFinite(joint);
     expectRecovered(joint.materials[0], kTruth, 1e-3);
     EXPECT_TRUE(joint.materials[0].unconstrained.empty());
-    const FitResult aloneB = fitPathSets({obsB}, {b}, {start});
+    const FitResult aloneB = fitPathSets({obsB}, {b}, {b}, {start});
     EXPECT_EQ(joint.pixelsUsed, aloneA.pixelsUsed + aloneB.pixelsUsed);
 }
 
-TEST(Fitter, RoundsRecordAtTheCurrentEstimateAndStopWhenConverged) {
+TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
     std::vector<std::pair<int, PhongMaterial>> calls;
-    // Each round records differently (terms split in round + 1 parts), the same model.
-    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0, int round) {
+    // Each recording differs (terms split in recording + 1 parts), the same model.
+    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
+                                    int recording) {
         EXPECT_EQ(view, 0);
-        calls.emplace_back(round, theta0.at(0));
+        calls.emplace_back(recording, theta0.at(0));
         SphereScene s = scene;
-        s.split = round + 1;
+        s.split = recording + 1;
         return makePaths(s);
     };
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
@@ -533,14 +579,15 @@ TEST(Fitter, RoundsRecordAtTheCurrentEstimateAndStopWhenConverged) {
     expectFinite(r);
     EXPECT_TRUE(r.converged);
     ASSERT_EQ(r.rounds.size(), 2u);
-    ASSERT_EQ(calls.size(), 2u);
-    EXPECT_EQ(calls[0].first, 0);
-    EXPECT_EQ(calls[1].first, 1);
-    EXPECT_EQ(calls[0].second.kd[0], start.kd[0]);
-    EXPECT_EQ(calls[0].second.n, start.n);
-    // Round 1 records at round 0's solution.
-    EXPECT_EQ(calls[1].second.kd[1], r.rounds[0].materials[0].kd[1]);
-    EXPECT_EQ(calls[1].second.n, r.rounds[0].materials[0].n);
+    ASSERT_EQ(calls.size(), 4u);
+    for (int k = 0; k < 4; ++k) EXPECT_EQ(calls[k].first, k);
+    for (int k = 0; k < 2; ++k) {
+        EXPECT_EQ(calls[k].second.kd[0], start.kd[0]);
+        EXPECT_EQ(calls[k].second.n, start.n);
+        // Round 1 records at round 0's solution.
+        EXPECT_EQ(calls[2 + k].second.kd[1], r.rounds[0].materials[0].kd[1]);
+        EXPECT_EQ(calls[2 + k].second.n, r.rounds[0].materials[0].n);
+    }
     expectRecovered(r.materials[0], kTruth, 1e-3);
     for (const FitRound& round : r.rounds) {
         EXPECT_GT(round.timeSeconds, 0);
@@ -560,10 +607,10 @@ TEST(Fitter, RoundsRecordAtTheCurrentEstimateAndStopWhenConverged) {
 TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
-    // Each round's path set is an unbiased but noisy estimate: constants times 1 + 10% noise.
-    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int round) {
+    // Each recording is an unbiased but noisy estimate: constants times 1 + 10% noise.
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
         PathSet ps = makePaths(scene);
-        std::mt19937 rng(100 + round);
+        std::mt19937 rng(100 + recording);
         std::normal_distribution<float> noise(0, 0.1f);
         for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
         return ps;
@@ -589,14 +636,90 @@ TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
     EXPECT_FALSE(fitMaterials({obs}, record, {start}, options).converged);
 }
 
+TEST(Fitter, InstrumentalVariablesRemoveTheAttenuationOfNoisyPathSets) {
+    SphereScene scene = threeLights();
+    scene.size = 160;
+    const PathSet exact = makePaths(scene);
+    const PhongMaterial truth = material(Color3(0.5, 0.35, 0.2), Color3(0.3, 0.4, 0.5), 20);
+    const Observation obs = observe(exact, {truth});
+    const PathSet a = noisy(exact, 1, 1), b = noisy(exact, 2, 1);  // 100% noise per term
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 50);
+    FitOptions leastSquares;
+    leastSquares.estimator = Estimator::LeastSquares;
+    const MaterialFit biased = fitPathSets({obs}, {a}, {b}, {start}, leastSquares).materials[0];
+    const FitResult r = fitPathSets({obs}, {a}, {b}, {start});
+    expectFinite(r);
+    const MaterialFit& m = r.materials[0];
+    for (int c = 0; c < 3; ++c) {
+        // Least squares fits the noise's variance too, which grows with kd and ks.
+        EXPECT_LT(biased.ks[c], 0.8 * truth.ks[c]) << "ks " << c;
+        EXPECT_NEAR(m.kd[c], truth.kd[c], 0.01 * truth.kd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.kd[c] - truth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.ks[c] - truth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
+        EXPECT_LT(std::abs(m.ks[c] - truth.ks[c]), 0.1 * std::abs(biased.ks[c] - truth.ks[c]))
+            << "ks " << c;
+        EXPECT_LT(m.ksStd[c], 0.03 * truth.ks[c]) << "ks " << c;
+    }
+    for (int c = 0; c < 2; ++c) EXPECT_LT(biased.kd[c], 0.95 * truth.kd[c]) << "kd " << c;
+    EXPECT_LT(std::abs(m.n - truth.n), 3 * m.nStd);
+    EXPECT_LT(m.nStd, 0.03 * truth.n);
+}
+
+TEST(Fitter, RoundsOnFreshNoisyPathSetsConvergeToTheTruth) {
+    SphereScene scene = threeLights();
+    scene.size = 80;
+    scene.split = 2;
+    const PathSet exact = makePaths(scene);
+    const PhongMaterial truth = material(Color3(0.5, 0.35, 0.2), Color3(0.3, 0.4, 0.5), 20);
+    const Observation obs = observe(exact, {truth});
+    std::vector<int> recordings;
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
+        recordings.push_back(recording);
+        return noisy(exact, 10 + unsigned(recording));
+    };
+    FitOptions options;
+    options.maxRounds = 6;
+    const FitResult r = fitMaterials(
+        {obs}, record, {material(Color3(0.2, 0.2, 0.2), Color3(0.6, 0.6, 0.6), 300)}, options);
+    expectFinite(r);
+    EXPECT_TRUE(r.converged);
+    ASSERT_EQ(recordings.size(), 2 * r.rounds.size());
+    for (std::size_t k = 0; k < recordings.size(); ++k) EXPECT_EQ(recordings[k], int(k));
+    const MaterialFit& m = r.materials[0];
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(m.kd[c], truth.kd[c], 0.01 * truth.kd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.kd[c] - truth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.ks[c] - truth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
+    }
+    EXPECT_LT(std::abs(m.n - truth.n), 3 * m.nStd);
+}
+
+TEST(Fitter, DoesNotDependOnTheThreadCount) {
+    const PathSet exact = makePaths(threeLights());
+    const PathSet a = noisy(exact, 3, 4), b = noisy(exact, 4, 4);
+    const Observation obs = observe(exact, {kTruth});
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    FitOptions one, two;
+    one.threads = 1;
+    two.threads = 2;
+    const MaterialFit m1 = fitPathSets({obs}, {a}, {b}, {start}, one).materials[0];
+    const MaterialFit m2 = fitPathSets({obs}, {a}, {b}, {start}, two).materials[0];
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(m1.kd[c], m2.kd[c], 1e-12);
+        EXPECT_NEAR(m1.ks[c], m2.ks[c], 1e-12);
+        EXPECT_NEAR(m1.kdStd[c], m2.kdStd[c], 1e-12);
+    }
+    EXPECT_NEAR(m1.n, m2.n, 1e-9);
+}
+
 TEST(Fitter, WeightsScaleResidualsNotTheEstimate) {
     const PathSet ps = makePaths(threeLights());
     Observation obs = observe(ps, {kTruth}, 0.01, 5);
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
-    const FitResult plain = fitPathSets({obs}, {ps}, {start});
+    const FitResult plain = fitPathSets({obs}, {ps}, {ps}, {start});
     obs.weight.assign(ps.width * ps.height, 3.0f);
     obs.weight[5] = 0;  // a zero weight leaves the pixel out
-    const FitResult weighted = fitPathSets({obs}, {ps}, {start});
+    const FitResult weighted = fitPathSets({obs}, {ps}, {ps}, {start});
     EXPECT_EQ(weighted.pixelsLeftOut.at("masked"), 1u);
     for (int c = 0; c < 3; ++c) {
         // Only the left-out pixel moves the estimate, by far less than its uncertainty.
@@ -608,7 +731,7 @@ TEST(Fitter, WeightsScaleResidualsNotTheEstimate) {
     EXPECT_NEAR(weighted.materials[0].nStd, plain.materials[0].nStd,
                 1e-6 * plain.materials[0].nStd);
     obs.weight[7] = -1;
-    EXPECT_THROW(fitPathSets({obs}, {ps}, {start}), Error);
+    EXPECT_THROW(fitPathSets({obs}, {ps}, {ps}, {start}), Error);
 }
 
 TEST(Fitter, RejectsInconsistentInput) {
@@ -617,17 +740,17 @@ TEST(Fitter, RejectsInconsistentInput) {
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
     Observation small = obs;
     small.width -= 1;
-    EXPECT_THROW(fitPathSets({small}, {ps}, {start}), Error);
-    EXPECT_THROW(fitPathSets({obs}, {ps}, {start, start}), Error);  // slot count
+    EXPECT_THROW(fitPathSets({small}, {ps}, {ps}, {start}), Error);
+    EXPECT_THROW(fitPathSets({obs}, {ps}, {ps}, {start, start}), Error);  // slot count
     PathSet badSlot = ps;
     badSlot.vertices[3].slot = 4;
-    EXPECT_THROW(fitPathSets({obs}, {badSlot}, {start}), Error);
+    EXPECT_THROW(fitPathSets({obs}, {badSlot}, {badSlot}, {start}), Error);
     EXPECT_THROW(
-        fitPathSets({obs}, {ps}, {material(Color3::Constant(0.7), Color3::Constant(0.7), 3)}),
+        fitPathSets({obs}, {ps}, {ps}, {material(Color3::Constant(0.7), Color3::Constant(0.7), 3)}),
         Error);
     Observation allMasked = obs;
     allMasked.valid.assign(obs.width * obs.height, 0);
-    EXPECT_THROW(fitPathSets({allMasked}, {ps}, {start}), Error);
+    EXPECT_THROW(fitPathSets({allMasked}, {ps}, {ps}, {start}), Error);
 }
 
 // ---- Report
@@ -636,7 +759,7 @@ TEST(FitReport, HasEveryKeyAndIsWrittenAtomically) {
     const PathSet ps = makePaths(threeLights());
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
     const PhongMaterial truth = material(Color3(0.6, 0.5, 0.4), Color3::Zero(), 10);
-    const FitResult r = fitPathSets({observe(ps, {truth}, 0.01)}, {ps}, {start});
+    const FitResult r = fitPathSets({observe(ps, {truth}, 0.01)}, {ps}, {ps}, {start});
     const nlohmann::json j = toJson(r, {"ball"});
     for (const char* key :
          {"materials", "rmse", "converged", "rounds", "time_s", "pixels_used", "pixels_left_out"})

@@ -3,12 +3,14 @@
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
 #include <vector>
 
 #include "material_params.h"
+#include "moment_residual.h"
 #include "pixel_residual.h"
 
 namespace phongfit {
@@ -242,6 +244,97 @@ TEST(PixelResidual, PassesGradientCheckerWithHeldDiffuse) {
     held.kd = {true, false, true};
     held.n = true;
     checkResidualGradients<kRgbBlock>(held);
+}
+
+// Moment equations g = sum over pixels and slots of Z^T r, random instruments Z against the
+// replay's residuals r, through MomentResidual: the chain rule to the internal coordinates, the
+// whitening and the equations of held coordinates left out.
+template <int P>
+void checkMomentGradients(const HeldParams& heldFirst) {
+    const RandomPaths r(30, 4);
+    const std::vector<PhongMaterial> theta = twoMaterials();
+    const std::vector<HeldParams> held = {heldFirst, HeldParams{}};
+    double x[2][P];
+    for (int s = 0; s < 2; ++s) toInternal<P>(naturalFromPhong<P>(theta[s]).data(), held[s], x[s]);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> normal;
+    std::vector<Eigen::Matrix<double, 3, P>> z(2 * r.paths.width);  // per pixel and slot
+    for (auto& m : z)
+        for (int i = 0; i < 3 * P; ++i) m.data()[i] = normal(rng);
+    const std::vector<std::uint32_t> bothSlots = {0, 1};
+    const auto moments = [&](const double* y, Eigen::VectorXd& g, Eigen::MatrixXd* dg) {
+        g.setZero(2 * P);
+        if (dg != nullptr) dg->setZero(2 * P, 2 * P);
+        std::vector<PhongParams<PackedJet>> scratch(2);
+        for (int p = 0; p < r.paths.width; ++p) {
+            Eigen::Matrix<double, 3, P> jacobian[2];
+            Color3 predicted;
+            for (std::uint32_t b = 0; b < 2; ++b)
+                predicted =
+                    replayNaturalJacobian<P>(r.paths, p, bothSlots, y, b, scratch, jacobian[b]);
+            const Eigen::Vector3d residual = (predicted - Color3(0.3, 0.2, 0.1)).matrix();
+            for (int a = 0; a < 2; ++a) {
+                g.template segment<P>(a * P) += z[2 * p + a].transpose() * residual;
+                for (int b = 0; dg != nullptr && b < 2; ++b)
+                    dg->template block<P, P>(a * P, b * P) +=
+                        z[2 * p + a].transpose() * jacobian[b];
+            }
+        }
+    };
+    std::vector<int> free;
+    for (int s = 0; s < 2; ++s) {
+        const std::vector<int> constant = heldCoordinates<P>(held[s]);
+        for (int i = 0; i < P; ++i)
+            if (std::find(constant.begin(), constant.end(), i) == constant.end())
+                free.push_back(s * P + i);
+    }
+    const Eigen::Index f = Eigen::Index(free.size());
+    Eigen::MatrixXd whitening = Eigen::MatrixXd::Zero(f, f);
+    for (Eigen::Index i = 0; i < f; ++i)
+        for (Eigen::Index k = 0; k <= i; ++k) whitening(i, k) = i == k ? 1 + i : normal(rng);
+    const MomentResidual<P> residual(moments, bothSlots, held, free, whitening);
+    ASSERT_EQ(residual.num_residuals(), int(f));
+
+    const std::vector<const ceres::Manifold*>* noManifolds = nullptr;
+    ceres::NumericDiffOptions numeric;
+    numeric.ridders_relative_initial_step_size = 1e-4;
+    ceres::GradientChecker checker(&residual, noManifolds, numeric);
+    ceres::GradientChecker::ProbeResults results;
+    const double* parameters[2] = {x[0], x[1]};
+    checker.Probe(parameters, 1e-6, &results);
+    ASSERT_TRUE(results.return_value);
+    for (int b = 0; b < 2; ++b) {
+        const double scale = results.numeric_jacobians[b].cwiseAbs().maxCoeff();
+        EXPECT_GT(scale, 0);
+        EXPECT_LE((results.jacobians[b] - results.numeric_jacobians[b]).cwiseAbs().maxCoeff(),
+                  1e-7 * scale)
+            << "block " << b << "\n"
+            << results.error_log;
+    }
+
+    // The residuals are L^-1 times the equations kept.
+    std::vector<double> y(2 * P);
+    for (int s = 0; s < 2; ++s) toNatural<P>(x[s], held[s], y.data() + s * P);
+    Eigen::VectorXd g;
+    moments(y.data(), g, nullptr);
+    Eigen::VectorXd values(f);
+    ASSERT_TRUE(residual.Evaluate(parameters, values.data(), nullptr));
+    EXPECT_LT((values - whitening * g(free)).norm(), 1e-12 * values.norm());
+}
+
+TEST(MomentResidual, PassesGradientCheckerRgb) { checkMomentGradients<kRgbBlock>(HeldParams{}); }
+
+TEST(MomentResidual, PassesGradientCheckerGreyWithHeldExponent) {
+    HeldParams held;
+    held.n = true;
+    checkMomentGradients<kGreyBlock>(held);
+}
+
+TEST(MomentResidual, PassesGradientCheckerWithHeldDiffuse) {
+    HeldParams held;
+    held.kd = {true, false, true};
+    held.ks[1] = true;
+    checkMomentGradients<kRgbBlock>(held);
 }
 
 }  // namespace

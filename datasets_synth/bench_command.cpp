@@ -1,0 +1,64 @@
+// phongfit bench render SCENE.xml ... -o DIR  and  phongfit bench fit DATASET_DIR ... -o DIR
+#include "bench_fit.h"
+#include "bench_render.h"
+#include "commands.h"
+
+namespace phongfit {
+
+void addBenchCommand(CLI::App& app) {
+    CLI::App* bench = app.add_subcommand(
+        "bench", "error against run time: of the samplers (render), of the fitter (fit)");
+    bench->require_subcommand(1);
+
+    auto r = std::make_shared<BenchRenderOptions>();
+    CLI::App* render = bench->add_subcommand(
+        "render", "RMSE and relative MSE against time of every sampler, with and without MIS");
+    render->add_option("scene", r->scene, "scene file (Mitsuba 0.6 XML subset)")->required();
+    render->add_option("-o,--output", r->output, "output directory")->required();
+    render->add_option("--reference", r->reference,
+                       "reference EXR (default: rendered with lafortune+mis at --reference-spp)");
+    render->add_option("--reference-spp", r->referenceSpp, "spp of the rendered reference")
+        ->check(CLI::Range(1, 1 << 20))
+        ->capture_default_str();
+    render->add_option("--budget", r->budget, "seconds of rendering per strategy")
+        ->capture_default_str();
+    render->add_option("--spp-max", r->sppMax, "stop doubling the spp at this count")
+        ->check(CLI::Range(1, 1 << 20))
+        ->capture_default_str();
+    render->add_option("-D", r->defines, "override a scene default: name=value");
+    render->add_option("--seed", r->seed,
+                       "seed of the measured renders (the reference uses seed + 1)");
+    render->add_option("--threads", r->threads, "worker threads (default: all)")
+        ->check(CLI::Range(1, 1024));
+    render->add_flag("--quiet", r->quiet, "no progress output");
+    render->callback([r] { runBenchRender(*r); });
+
+    auto f = std::make_shared<BenchFitOptions>();
+    CLI::App* fit = bench->add_subcommand(
+        "fit",
+        "fit every sample of a synth dataset; recovered against true parameters, error "
+        "against time");
+    fit->add_option("dataset", f->dataset, "dataset directory written by phongfit synth")
+        ->required();
+    fit->add_option("-o,--output", f->output, "output directory")->required();
+    fit->add_option("--spp-per-round", f->sppPerRound, "paths recorded per pixel and round; a list")
+        ->delimiter(',')
+        ->capture_default_str();
+    fit->add_option("--start-kd", f->startKd, "start kd for every sample (R,G,B or one number)")
+        ->capture_default_str();
+    fit->add_option("--start-ks", f->startKs, "start ks for every sample")->capture_default_str();
+    fit->add_option("--start-n", f->startN, "start exponent for every sample")
+        ->capture_default_str();
+    fit->add_option("--rounds", f->rounds, "at most this many rounds per fit")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
+    fit->add_option("--fail-threshold", f->failThreshold,
+                    "a fit with a relative error above this fails")
+        ->capture_default_str();
+    fit->add_option("--threads", f->threads, "worker threads (default: all)")
+        ->check(CLI::Range(1, 1024));
+    fit->add_flag("--quiet", f->quiet, "no per-fit lines");
+    fit->callback([f] { runBenchFit(*f); });
+}
+
+}  // namespace phongfit

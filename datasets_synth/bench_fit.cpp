@@ -1,0 +1,424 @@
+#include "bench_fit.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
+#include "error.h"
+#include "fit_command.h"
+#include "image.h"
+#include "interrupt.h"
+#include "machine_info.h"
+#include "plot.h"
+#include "synth_dataset.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+// Relative errors: of a colour, the RGB distance over the true colour's length.
+double colourError(const Color3& x, const Color3& truth) {
+    return (x - truth).matrix().norm() / std::max(truth.matrix().norm(), 1e-12);
+}
+double exponentError(double n, double truth) {
+    return std::abs(n - truth) / std::max(truth, 1e-12);
+}
+
+struct Errors {
+    double kd = 0, ks = 0, n = 0;
+};
+
+Errors errorsOf(const MaterialFit& m, const PhongMaterial& truth) {
+    return {colourError(m.kd, truth.kd), colourError(m.ks, truth.ks), exponentError(m.n, truth.n)};
+}
+
+struct RoundPoint {
+    double seconds = 0;  // cumulative, over the rounds so far
+    Errors errors;
+};
+
+struct FitRow {
+    const DatasetSample* sample = nullptr;
+    int spp = 0;
+    bool returned = false;  // false: the fit threw (see `error`)
+    MaterialFit fit;
+    int rounds = 0;
+    bool converged = false;
+    double seconds = 0;  // wall time of the whole fit command
+    double rmse = 0;
+    Errors errors;
+    bool failed = false;
+    std::string error;
+    std::vector<RoundPoint> history;
+};
+
+bool finite(const MaterialFit& m) {
+    return m.kd.allFinite() && m.ks.allFinite() && std::isfinite(m.n);
+}
+
+FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, const fs::path& dir) {
+    FitRow row;
+    row.sample = &s;
+    row.spp = spp;
+    FitArgs args;
+    args.views = {s.scenePath + ":" + s.imagePath};
+    args.materials = {s.material};
+    const fs::path out = dir / "fits" / fmt::format("spp{}", spp) / s.name;
+    fs::create_directories(out.parent_path());
+    args.output = out.string();
+    args.kd = o.startKd;
+    args.ks = o.startKs;
+    args.n = o.startN;
+    args.spp = spp;
+    args.rounds = o.rounds;
+    args.grey = s.grey;
+    args.threads = o.threads;
+    args.quiet = true;
+    const auto start = std::chrono::steady_clock::now();
+    try {
+        const FitResult r = runFit(args);
+        row.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        row.returned = true;
+        row.fit = r.materials.at(0);
+        row.rounds = int(r.rounds.size());
+        row.converged = r.converged;
+        row.rmse = r.rmse;
+        row.errors = errorsOf(row.fit, s.truth);
+        double cumulative = 0;
+        for (const FitRound& round : r.rounds) {
+            cumulative += round.timeSeconds;
+            row.history.push_back({cumulative, errorsOf(round.materials.at(0), s.truth)});
+        }
+        if (!finite(row.fit)) {
+            row.failed = true;
+            row.error = "non-finite result";
+        } else if (std::max({row.errors.kd, row.errors.ks, row.errors.n}) > o.failThreshold) {
+            row.failed = true;
+            row.error = fmt::format("relative error above {}", o.failThreshold);
+        }
+    } catch (const std::exception& e) {
+        row.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        row.failed = true;
+        row.error = e.what();
+    }
+    return row;
+}
+
+std::string csvField(const std::string& s) {
+    if (s.find_first_of(",\"\n") == std::string::npos) return s;
+    std::string quoted = "\"";
+    for (const char c : s) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return quoted + "\"";
+}
+
+void writeText(const fs::path& path, const std::string& text) {
+    writeAtomically(path, [&](const fs::path& tmp) {
+        std::ofstream out(tmp);
+        out << text;
+        if (!out) throw Error(fmt::format("cannot write '{}'", tmp.string()));
+    });
+}
+
+std::string recoveryCsv(const std::vector<FitRow>& rows) {
+    std::string csv =
+        "sample,group,spp_per_round,kd_r_true,kd_g_true,kd_b_true,ks_r_true,ks_g_true,ks_b_true,"
+        "n_true,kd_r,kd_g,kd_b,ks_r,ks_g,ks_b,n,kd_r_std,kd_g_std,kd_b_std,ks_r_std,ks_g_std,"
+        "ks_b_std,n_std,kd_rel_err,ks_rel_err,n_rel_err,rounds,converged,time_s,rmse,"
+        "unconstrained,failed,error\n";
+    auto colour = [](const Color3& c) {
+        return fmt::format("{:.6g},{:.6g},{:.6g}", c[0], c[1], c[2]);
+    };
+    for (const FitRow& r : rows) {
+        const PhongMaterial& t = r.sample->truth;
+        const MaterialFit& m = r.fit;
+        csv += fmt::format("{},{},{},{},{},{:.6g},", r.sample->name, r.sample->group, r.spp,
+                           colour(t.kd), colour(t.ks), t.n);
+        if (r.returned)
+            csv += fmt::format(
+                "{},{},{:.6g},{},{},{:.3g},{:.6g},{:.6g},{:.6g},{},{},{:.4g},{:.6g},", colour(m.kd),
+                colour(m.ks), m.n, colour(m.kdStd), colour(m.ksStd), m.nStd, r.errors.kd,
+                r.errors.ks, r.errors.n, r.rounds, int(r.converged), r.seconds, r.rmse);
+        else
+            csv += fmt::format(",,,,,,,,,,,,,,,,,,{:.4g},,", r.seconds);
+        csv +=
+            fmt::format("{},{},{}\n", csvField(fmt::format("{}", fmt::join(m.unconstrained, ";"))),
+                        int(r.failed), csvField(r.error));
+    }
+    return csv;
+}
+
+std::string roundsCsv(const std::vector<FitRow>& rows) {
+    std::string csv = "sample,group,spp_per_round,round,time_s,kd_rel_err,ks_rel_err,n_rel_err\n";
+    for (const FitRow& r : rows)
+        for (std::size_t k = 0; k < r.history.size(); ++k)
+            csv +=
+                fmt::format("{},{},{},{},{:.4g},{:.6g},{:.6g},{:.6g}\n", r.sample->name,
+                            r.sample->group, r.spp, k + 1, r.history[k].seconds,
+                            r.history[k].errors.kd, r.history[k].errors.ks, r.history[k].errors.n);
+    return csv;
+}
+
+// Linear interpolation between order statistics; NaN for no values.
+double quantile(std::vector<double> v, double q) {
+    if (v.empty()) return std::nan("");
+    std::sort(v.begin(), v.end());
+    const double at = q * double(v.size() - 1);
+    const std::size_t i = std::size_t(at);
+    return i + 1 < v.size() ? v[i] + (at - double(i)) * (v[i + 1] - v[i]) : v[i];
+}
+
+struct SummaryRow {
+    int spp = 0;
+    std::string group;
+    int fits = 0, failed = 0, threw = 0, notConverged = 0, unconstrained = 0;
+    double kdMedian = 0, kdP95 = 0, ksMedian = 0, ksP95 = 0, nMedian = 0, nP95 = 0;
+    double medianSeconds = 0, totalSeconds = 0, medianRounds = 0;
+};
+
+SummaryRow summarize(int spp, const std::string& group, const std::vector<const FitRow*>& rows) {
+    SummaryRow s;
+    s.spp = spp;
+    s.group = group;
+    std::vector<double> kd, ks, n, seconds, rounds;
+    for (const FitRow* r : rows) {
+        ++s.fits;
+        s.failed += r->failed;
+        s.threw += !r->returned;
+        s.totalSeconds += r->seconds;
+        seconds.push_back(r->seconds);
+        if (!r->returned || !finite(r->fit)) continue;
+        s.notConverged += !r->converged;
+        s.unconstrained += !r->fit.unconstrained.empty();
+        kd.push_back(r->errors.kd);
+        ks.push_back(r->errors.ks);
+        n.push_back(r->errors.n);
+        rounds.push_back(r->rounds);
+    }
+    s.kdMedian = quantile(kd, 0.5);
+    s.kdP95 = quantile(kd, 0.95);
+    s.ksMedian = quantile(ks, 0.5);
+    s.ksP95 = quantile(ks, 0.95);
+    s.nMedian = quantile(n, 0.5);
+    s.nP95 = quantile(n, 0.95);
+    s.medianSeconds = quantile(seconds, 0.5);
+    s.medianRounds = quantile(rounds, 0.5);
+    return s;
+}
+
+std::vector<SummaryRow> summaries(const std::vector<FitRow>& rows, const std::vector<int>& spps) {
+    std::vector<std::string> groups;
+    for (const FitRow& r : rows)
+        if (std::find(groups.begin(), groups.end(), r.sample->group) == groups.end())
+            groups.push_back(r.sample->group);
+    std::vector<SummaryRow> out;
+    for (const int spp : spps) {
+        std::vector<const FitRow*> all;
+        for (const FitRow& r : rows)
+            if (r.spp == spp) all.push_back(&r);
+        if (all.empty()) continue;
+        for (const std::string& g : groups) {
+            std::vector<const FitRow*> mine;
+            for (const FitRow* r : all)
+                if (r->sample->group == g) mine.push_back(r);
+            if (!mine.empty()) out.push_back(summarize(spp, g, mine));
+        }
+        if (groups.size() > 1) out.push_back(summarize(spp, "all", all));
+    }
+    return out;
+}
+
+std::string percent(double v) { return std::isnan(v) ? "-" : fmt::format("{:.3g}%", 100 * v); }
+
+std::string markdownTable(const std::vector<SummaryRow>& rows) {
+    std::string md =
+        "| spp/round | group | fits | failed | not converged | unconstrained | kd median | kd p95 "
+        "| ks median | ks p95 | n median | n p95 | rounds (median) | time median [s] | time "
+        "total [s] |\n"
+        "|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    for (const SummaryRow& s : rows)
+        md += fmt::format(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2f} "
+            "| {:.1f} |\n",
+            s.spp, s.group, s.fits, s.failed, s.notConverged, s.unconstrained, percent(s.kdMedian),
+            percent(s.kdP95), percent(s.ksMedian), percent(s.ksP95), percent(s.nMedian),
+            percent(s.nP95), std::isnan(s.medianRounds) ? "-" : fmt::format("{:g}", s.medianRounds),
+            s.medianSeconds, s.totalSeconds);
+    return md;
+}
+
+json toJson(const SummaryRow& s) {
+    auto number = [](double v) { return std::isnan(v) ? json(nullptr) : json(v); };
+    return {{"spp_per_round", s.spp},
+            {"group", s.group},
+            {"fits", s.fits},
+            {"failed", s.failed},
+            {"threw", s.threw},
+            {"not_converged", s.notConverged},
+            {"unconstrained", s.unconstrained},
+            {"kd_rel_err", {{"median", number(s.kdMedian)}, {"p95", number(s.kdP95)}}},
+            {"ks_rel_err", {{"median", number(s.ksMedian)}, {"p95", number(s.ksP95)}}},
+            {"n_rel_err", {{"median", number(s.nMedian)}, {"p95", number(s.nP95)}}},
+            {"rounds_median", number(s.medianRounds)},
+            {"time_s_median", s.medianSeconds},
+            {"time_s_total", s.totalSeconds}};
+}
+
+// Recovered against true, one colour per spp per round.
+cv::Mat recoveryPlot(const std::vector<FitRow>& rows, const std::vector<int>& spps) {
+    PlotPanel kd{"kd", {"true kd", false}, {"recovered kd", false}, {}, true};
+    PlotPanel ks{"ks", {"true ks", false}, {"recovered ks", false}, {}, true};
+    PlotPanel n{"n", {"true n", true}, {"recovered n", true}, {}, true};
+    double ksMin = 1e300, ksMax = 0;
+    for (std::size_t i = 0; i < spps.size(); ++i) {
+        const std::string label = fmt::format("{} spp/round", spps[i]);
+        PlotSeries a{label, plotColor(int(i)), false, false, true, {}}, b = a, c = a;
+        for (const FitRow& r : rows) {
+            if (r.spp != spps[i] || !r.returned) continue;
+            const PhongMaterial& t = r.sample->truth;
+            for (int ch = 0; ch < (r.sample->grey ? 1 : 3); ++ch) {
+                a.points.emplace_back(t.kd[ch], r.fit.kd[ch]);
+                b.points.emplace_back(t.ks[ch], r.fit.ks[ch]);
+                ksMin = std::min(ksMin, t.ks[ch]);
+                ksMax = std::max(ksMax, t.ks[ch]);
+            }
+            c.points.emplace_back(t.n, r.fit.n);
+        }
+        kd.series.push_back(a);
+        ks.series.push_back(b);
+        n.series.push_back(c);
+    }
+    // Small specular reflectances (the stiff cases) only separate on a log axis.
+    if (ksMin > 0 && ksMax / ksMin > 20) ks.x.log = ks.y.log = true;
+    return drawFigure("recovered against true parameters", {kd, ks, n}, 440, 420);
+}
+
+// The median error after each round against the median time spent up to it; a fit that stopped
+// earlier keeps its last estimate and time.
+cv::Mat errorVsTimePlot(const std::vector<FitRow>& rows, const std::vector<int>& spps) {
+    const std::string x = "fit time [s]";
+    PlotPanel kd{"kd", {x, true}, {"median relative error", true}, {}, false};
+    PlotPanel ks{"ks", {x, true}, {"median relative error", true}, {}, false};
+    PlotPanel n{"n", {x, true}, {"median relative error", true}, {}, false};
+    std::size_t maxRounds = 0;
+    for (const FitRow& r : rows) maxRounds = std::max(maxRounds, r.history.size());
+    for (std::size_t i = 0; i < spps.size(); ++i) {
+        PlotSeries a{
+            fmt::format("{} spp/round", spps[i]), plotColor(int(i)), false, true, true, {}};
+        PlotSeries b = a, c = a;
+        for (std::size_t k = 0; k < maxRounds; ++k) {
+            std::vector<double> t, ekd, eks, en;
+            for (const FitRow& r : rows) {
+                if (r.spp != spps[i] || r.history.empty()) continue;
+                const RoundPoint& p = r.history[std::min(k, r.history.size() - 1)];
+                t.push_back(p.seconds);
+                ekd.push_back(p.errors.kd);
+                eks.push_back(p.errors.ks);
+                en.push_back(p.errors.n);
+            }
+            if (t.empty()) continue;
+            const double time = quantile(t, 0.5);
+            a.points.emplace_back(time, std::max(quantile(ekd, 0.5), 1e-6));
+            b.points.emplace_back(time, std::max(quantile(eks, 0.5), 1e-6));
+            c.points.emplace_back(time, std::max(quantile(en, 0.5), 1e-6));
+        }
+        kd.series.push_back(a);
+        ks.series.push_back(b);
+        n.series.push_back(c);
+    }
+    return drawFigure("parameter error against fit time (one point per round)", {kd, ks, n}, 440,
+                      400);
+}
+
+}  // namespace
+
+void runBenchFit(const BenchFitOptions& o) {
+    if (o.sppPerRound.empty()) throw Error("--spp-per-round: give at least one value");
+    for (const int spp : o.sppPerRound)
+        if (spp < 1 || spp > 4096)
+            throw Error(fmt::format("--spp-per-round {}: each value must be in [1, 4096]", spp));
+    if (!(o.failThreshold > 0))
+        throw Error(fmt::format("--fail-threshold {}: must be > 0", o.failThreshold));
+    const fs::path dir(o.output);
+    if (fs::exists(dir) && !fs::is_directory(dir))
+        throw Error(fmt::format("-o '{}': exists and is not a directory", dir.string()));
+    if (!fs::is_directory(fs::absolute(dir).parent_path()))
+        throw Error(fmt::format("-o '{}': directory '{}' does not exist", dir.string(),
+                                fs::absolute(dir).parent_path().string()));
+    const std::vector<DatasetSample> samples = readDataset(o.dataset);
+    fs::create_directories(dir);
+    installInterruptHandler();
+
+    std::vector<FitRow> rows;
+    const std::size_t total = samples.size() * o.sppPerRound.size();
+    for (const int spp : o.sppPerRound)
+        for (const DatasetSample& s : samples) {
+            if (interruptRequested()) break;
+            FitRow row = fitSample(s, spp, o, dir);
+            if (interruptRequested()) break;  // stopped mid-way: not a measurement
+            rows.push_back(std::move(row));
+            const FitRow& r = rows.back();
+            if (!o.quiet)
+                fmt::print(stderr, "[{}/{}] {} at {} spp/round: {}\n", rows.size(), total, s.name,
+                           spp,
+                           r.returned ? fmt::format("kd {}, ks {}, n {} off; {} rounds, {:.2f} s{}",
+                                                    percent(r.errors.kd), percent(r.errors.ks),
+                                                    percent(r.errors.n), r.rounds, r.seconds,
+                                                    r.failed ? " (failed)" : "")
+                                      : "failed: " + r.error);
+        }
+
+    writeText(dir / "recovery.csv", recoveryCsv(rows));
+    writeText(dir / "rounds.csv", roundsCsv(rows));
+    writePng(recoveryPlot(rows, o.sppPerRound), (dir / "recovered_vs_true.png").string());
+    writePng(errorVsTimePlot(rows, o.sppPerRound), (dir / "error_vs_time_fit.png").string());
+
+    const json machine = machineInfo(o.threads);
+    const json run = {{"command", "bench fit"},
+                      {"dataset", o.dataset},
+                      {"samples", samples.size()},
+                      {"spp_per_round", o.sppPerRound},
+                      {"start", {{"kd", o.startKd}, {"ks", o.startKs}, {"n", o.startN}}},
+                      {"max_rounds", o.rounds},
+                      {"fail_threshold", o.failThreshold},
+                      {"interrupted", interruptRequested()}};
+    json info = machine;
+    info["run"] = run;
+    writeText(dir / "machine.json", info.dump(2) + "\n");
+
+    const std::vector<SummaryRow> table = summaries(rows, o.sppPerRound);
+    json summary = {{"machine", machine}, {"run", run}, {"rows", json::array()}};
+    for (const SummaryRow& s : table) summary["rows"].push_back(toJson(s));
+    writeText(dir / "summary.json", summary.dump(2) + "\n");
+    const std::string definitions = fmt::format(
+        "Relative errors: |x - x_true| / |x_true|, for kd and ks with |.| the RGB length. A fit "
+        "fails when it throws, returns a non-finite value, or a relative error exceeds {:g}; "
+        "\"unconstrained\" counts fits that reported a parameter the image does not constrain. "
+        "Start for every sample: kd {}, ks {}, n {:g}; at most {} rounds.",
+        o.failThreshold, o.startKd, o.startKs, o.startN, o.rounds);
+    const std::string md = markdownTable(table);
+    writeText(
+        dir / "summary.md",
+        fmt::format("# bench fit: {}\n\n{}\n\n{}\nMachine: {}, {} cores ({} threads), {} "
+                    "build, {}, commit {}.\n",
+                    o.dataset, definitions, md, machine["cpu"].get<std::string>(),
+                    machine["cores"].get<int>(), machine["threads_used"].get<int>(),
+                    machine["build_type"].get<std::string>(),
+                    machine["compiler"].get<std::string>(), machine["commit"].get<std::string>()));
+    fmt::print("\n{}\n{}", definitions, md);
+    fmt::print("-> {}\n", (dir / "summary.md").string());
+    if (interruptRequested())
+        fmt::print("interrupted: the tables hold the {} fits done so far\n", rows.size());
+}
+
+}  // namespace phongfit

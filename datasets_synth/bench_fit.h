@@ -1,0 +1,32 @@
+// phongfit bench fit: fits every sample of a synth dataset (through runFit, the code path of
+// `phongfit fit`) from one start far from the truth, for several spp per round, and reports how
+// well and how fast the parameters come back.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace phongfit {
+
+struct BenchFitOptions {
+    std::string dataset, output;
+    std::vector<int> sppPerRound = {4, 16};
+    // The same start for every sample, so it is far from most truths.
+    std::string startKd = "0.25", startKs = "0.25";
+    double startN = 100;
+    int rounds = 6;
+    // A fit fails when it throws, returns a non-finite value, or misses a parameter by more than
+    // this relative error.
+    double failThreshold = 0.5;
+    int threads = 0;
+    bool quiet = false;
+};
+
+// Writes DIR/recovery.csv (one row per sample and spp), DIR/rounds.csv (the estimate after each
+// round), DIR/recovered_vs_true.png, DIR/error_vs_time_fit.png, DIR/summary.json, DIR/summary.md
+// and DIR/machine.json, with each fit's own outputs in DIR/fits/spp<N>/<sample>/; prints the
+// summary table. Stops after the current fit on SIGINT, writing what it has.
+void runBenchFit(const BenchFitOptions& options);
+
+}  // namespace phongfit

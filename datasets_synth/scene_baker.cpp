@@ -1,0 +1,130 @@
+#include "scene_baker.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <pugixml.hpp>
+#include <sstream>
+#include <vector>
+
+#include "atomic_file.h"
+#include "error.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A replacement of text[begin, end).
+struct Splice {
+    std::size_t begin, end;
+    std::string text;
+};
+
+bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
+
+// Where the value of attribute `name` sits in the start tag whose element name begins at `offset`
+// (pugixml's offset_debug), in a text pugixml accepted as well-formed, with that attribute:
+// [begin, end) between the quotes.
+std::pair<std::size_t, std::size_t> attributeValue(const std::string& text, std::size_t offset,
+                                                   const std::string& name) {
+    std::size_t i = offset;
+    while (!isSpace(text[i]) && text[i] != '/' && text[i] != '>') ++i;
+    for (;;) {
+        while (isSpace(text[i])) ++i;
+        const std::size_t nameBegin = i;
+        while (!isSpace(text[i]) && text[i] != '=') ++i;
+        const std::string attribute = text.substr(nameBegin, i - nameBegin);
+        i = text.find_first_of("\"'", i);
+        const std::size_t end = text.find(text[i], i + 1);
+        if (attribute == name) return {i + 1, end};
+        i = end + 1;
+    }
+}
+
+std::string escapeXml(const std::string& s) {
+    std::string out;
+    for (const char c : s) {
+        if (c == '&')
+            out += "&amp;";
+        else if (c == '<')
+            out += "&lt;";
+        else if (c == '"')
+            out += "&quot;";
+        else if (c == '\'')
+            out += "&apos;";
+        else
+            out += c;
+    }
+    return out;
+}
+
+// Relative mesh file names resolve against the scene's directory (scene_parser.h).
+void meshPathSplices(const std::string& text, pugi::xml_node node, const fs::path& fromDir,
+                     const fs::path& toDir, std::vector<Splice>& splices) {
+    for (const pugi::xml_node shape : node.children("shape")) {
+        if (std::string_view(shape.attribute("type").value()) == "obj")
+            for (const pugi::xml_node s : shape.children("string")) {
+                const fs::path file = s.attribute("value").value();
+                if (std::string_view(s.attribute("name").value()) != "filename" ||
+                    !s.attribute("value") || file.is_absolute() ||
+                    file.string().find('$') != std::string::npos)
+                    continue;
+                const auto [begin, end] = attributeValue(text, s.offset_debug(), "value");
+                splices.push_back(
+                    {begin, end, escapeXml(fs::relative(fromDir / file, toDir).generic_string())});
+            }
+        meshPathSplices(text, shape, fromDir, toDir, splices);
+    }
+}
+
+}  // namespace
+
+std::set<std::string> bakeSceneDefaults(const std::string& inPath,
+                                        const std::map<std::string, std::string>& values,
+                                        const std::string& comment, const std::string& outPath) {
+    std::ifstream in(inPath, std::ios::binary);
+    if (!in) throw Error(fmt::format("cannot read scene '{}'", inPath));
+    std::stringstream buffer;
+    buffer << in.rdbuf();
+    const std::string text = buffer.str();
+    pugi::xml_document doc;
+    const pugi::xml_parse_result parsed =
+        doc.load_buffer(text.data(), text.size(), pugi::parse_default, pugi::encoding_utf8);
+    if (!parsed)
+        throw Error(fmt::format("{}: not well-formed XML: {}", inPath, parsed.description()));
+    const pugi::xml_node root = doc.child("scene");
+    if (!root) throw Error(fmt::format("{}: no <scene> root element", inPath));
+
+    // Edits in place keep everything else byte for byte: layout, comments, quoting.
+    std::vector<Splice> splices;
+    std::set<std::string> replaced;
+    for (const pugi::xml_node d : root.children("default")) {
+        const auto it = values.find(d.attribute("name").value());
+        if (it == values.end() || !d.attribute("value")) continue;
+        const auto [begin, end] = attributeValue(text, d.offset_debug(), "value");
+        splices.push_back({begin, end, escapeXml(it->second)});
+        replaced.insert(it->first);
+    }
+    meshPathSplices(text, root, fs::absolute(inPath).parent_path(),
+                    fs::absolute(outPath).parent_path(), splices);
+    if (!comment.empty()) {
+        const std::size_t lt = std::size_t(root.offset_debug()) - 1;
+        splices.push_back({lt, lt, "<!-- " + comment + " -->\n"});
+    }
+    std::sort(splices.begin(), splices.end(),
+              [](const Splice& a, const Splice& b) { return a.begin > b.begin; });
+    std::string out = text;
+    for (const Splice& s : splices) out.replace(s.begin, s.end - s.begin, s.text);
+
+    writeAtomically(outPath, [&](const fs::path& tmp) {
+        std::ofstream file(tmp, std::ios::binary);
+        file << out;
+        if (!file) throw Error(fmt::format("cannot write '{}'", tmp.string()));
+    });
+    return replaced;
+}
+
+}  // namespace phongfit

@@ -1,0 +1,37 @@
+// Generates a synthetic dataset (phongfit synth): per sample a folder with the scene file (the
+// drawn values baked into its defaults), the rendered EXR and truth.json, plus index.json.
+//
+// A sample is complete when its truth.json exists: it is written last, atomically, after the
+// other files (atomic too). A rerun into the same folder redoes only the incomplete samples; the
+// dataset's config.json (the config as read, and a digest of each base scene) guards against
+// resuming with another config. Each sample's values and render seed are functions of the
+// config's seed and the sample's index, and renders are bit-identical whatever the thread count,
+// so an interrupted and resumed run writes exactly the files an uninterrupted one does.
+#pragma once
+
+#include <string>
+
+#include "synth_config.h"
+
+namespace phongfit {
+
+struct SynthOptions {
+    std::string output;
+    int jobs = 1;  // samples rendered at once, sharing the hardware threads
+    bool quiet = false;
+};
+
+struct SynthSummary {
+    int total = 0;
+    int rendered = 0;         // by this run
+    int alreadyComplete = 0;  // found complete and kept
+    bool interrupted = false;
+    double seconds = 0;
+};
+
+// Stops between samples on SIGINT/SIGTERM (renderer/interrupt.h); a render interrupted mid-way is
+// discarded, never saved as a sample. index.json is written only once every sample is complete.
+// Throws Error for an unusable output folder or a config that differs from the folder's.
+SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options);
+
+}  // namespace phongfit

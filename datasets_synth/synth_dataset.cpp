@@ -1,0 +1,69 @@
+#include "synth_dataset.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "error.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+json readJson(const fs::path& path, const std::string& missingHint) {
+    std::ifstream in(path);
+    if (!in) throw Error(fmt::format("cannot read '{}'{}", path.string(), missingHint));
+    try {
+        return json::parse(in);
+    } catch (const json::exception& e) {
+        throw Error(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
+    }
+}
+
+Color3 color(const json& j, const fs::path& file, const char* key) {
+    if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() ||
+        !j[2].is_number())
+        throw Error(fmt::format("{}: '{}' = {}: expected [r, g, b]", file.string(), key, j.dump()));
+    return Color3(j[0].get<double>(), j[1].get<double>(), j[2].get<double>());
+}
+
+}  // namespace
+
+std::vector<DatasetSample> readDataset(const std::string& dir) {
+    const json index = readJson(fs::path(dir) / "index.json",
+                                " (not a complete synth dataset: run phongfit synth to finish it)");
+    if (!index.contains("samples") || !index["samples"].is_array())
+        throw Error(fmt::format("{}/index.json: no list 'samples'", dir));
+    std::vector<DatasetSample> samples;
+    for (const json& entry : index["samples"]) {
+        if (!entry.contains("name") || !entry["name"].is_string())
+            throw Error(fmt::format("{}/index.json: a sample without a 'name'", dir));
+        const fs::path sampleDir = fs::path(dir) / entry["name"].get<std::string>();
+        const fs::path file = sampleDir / "truth.json";
+        const json t = readJson(file, "");
+        try {
+            DatasetSample s;
+            s.name = t.at("name").get<std::string>();
+            s.group = t.at("group").get<std::string>();
+            s.scenePath = (sampleDir / t.at("scene").get<std::string>()).string();
+            s.imagePath = (sampleDir / t.at("image").get<std::string>()).string();
+            s.material = t.at("material").get<std::string>();
+            s.truth.kd = color(t.at("kd"), file, "kd");
+            s.truth.ks = color(t.at("ks"), file, "ks");
+            s.truth.n = t.at("n").get<double>();
+            s.grey = t.at("grey").get<bool>();
+            validatePhong(s.truth, file.string());
+            samples.push_back(std::move(s));
+        } catch (const json::exception& e) {
+            throw Error(fmt::format("{}: {}", file.string(), e.what()));
+        }
+    }
+    if (samples.empty()) throw Error(fmt::format("{}/index.json: no samples", dir));
+    return samples;
+}
+
+}  // namespace phongfit

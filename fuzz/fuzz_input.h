@@ -1,0 +1,45 @@
+// Shared by the libFuzzer targets: the input as a file the tool's readers can open (they take
+// paths, as the command line does), in a per-process temporary directory removed at exit.
+#pragma once
+
+#include <unistd.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace phongfit::fuzz {
+
+class ScratchDir {
+public:
+    ScratchDir()
+        : path_(std::filesystem::temp_directory_path() /
+                ("phongfit_fuzz_" + std::to_string(getpid()))) {
+        std::filesystem::create_directories(path_);
+    }
+    ~ScratchDir() {
+        std::error_code ec;
+        std::filesystem::remove_all(path_, ec);
+    }
+    const std::filesystem::path& path() const { return path_; }
+
+    // Writes `data` to `name` in the directory and returns its path.
+    std::string write(const std::string& name, const std::uint8_t* data, std::size_t size) const {
+        const std::filesystem::path file = path_ / name;
+        std::ofstream(file, std::ios::binary | std::ios::trunc)
+            .write(reinterpret_cast<const char*>(data), std::streamsize(size));
+        return file.string();
+    }
+
+private:
+    std::filesystem::path path_;
+};
+
+inline const ScratchDir& scratch() {
+    static const ScratchDir dir;
+    return dir;
+}
+
+}  // namespace phongfit::fuzz

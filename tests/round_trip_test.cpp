@@ -1,0 +1,184 @@
+// Round trips through the executable: render an image with known parameters, fit it back from a
+// start far from the truth (n off by 100x), compare: kd and ks within 2%, n within 5% (issue 4),
+// on the single sphere for n = 1, 30, 1000, plus the extreme cases.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "image.h"
+#include "subprocess.h"
+#include "temp_dir.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kLit = PHONGFIT_TEST_SCENES_DIR "/sphere_lit.xml";
+
+class RoundTrip : public ::testing::Test {
+protected:
+    std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+    static std::vector<std::string> defines(const std::map<std::string, std::string>& d) {
+        std::vector<std::string> args;
+        for (const auto& [k, v] : d) args.insert(args.end(), {"-D", k + "=" + v});
+        return args;
+    }
+
+    // Renders `scene` with `truth` defines into NAME.exr.
+    std::string render(const std::string& scene, const std::map<std::string, std::string>& truth,
+                       const std::string& name, int spp) {
+        std::vector<std::string> args = {PHONGFIT_EXE, "render", scene, "-o", path(name + ".exr"),
+                                         "--spp", std::to_string(spp), "--seed", "11", "--quiet"};
+        const auto d = defines(truth);
+        args.insert(args.end(), d.begin(), d.end());
+        const auto r = test::runProcess(args);
+        EXPECT_EQ(r.exitCode, 0) << r.err;
+        return path(name + ".exr");
+    }
+
+    // Fits `views` (scene:image) with extra arguments; returns fit.json.
+    nlohmann::json fit(const std::vector<std::string>& views, std::vector<std::string> extra,
+                       const std::string& name) {
+        std::vector<std::string> args = {PHONGFIT_EXE, "fit", "--material", "sphere", "-o",
+                                         path(name), "--quiet"};
+        for (const std::string& v : views) args.insert(args.end(), {"--view", v});
+        args.insert(args.end(), extra.begin(), extra.end());
+        const auto r = test::runProcess(args);
+        EXPECT_EQ(r.exitCode, 0) << r.err;
+        return nlohmann::json::parse(std::ifstream(path(name) + "/fit.json"));
+    }
+
+    const test::TempDir temp_{"roundtrip"};
+    const fs::path& dir_ = temp_.path();
+};
+
+void expectRecovered(const nlohmann::json& m, double kd, double ks, double n,
+                     const std::string& what) {
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(m["kd"][c].get<double>(), kd, 0.02 * kd + 1e-4) << what << " kd channel " << c;
+        EXPECT_NEAR(m["ks"][c].get<double>(), ks, 0.02 * ks + 1e-4) << what << " ks channel " << c;
+    }
+    EXPECT_NEAR(m["n"].get<double>(), n, 0.05 * n) << what;
+}
+
+struct SphereCase {
+    double kd, ks, n, startN;
+    const char* fov;
+};
+
+class SphereRoundTrip : public RoundTrip, public ::testing::WithParamInterface<SphereCase> {};
+
+TEST_P(SphereRoundTrip, RecoversKdKsAndN) {
+    const SphereCase& c = GetParam();
+    const std::map<std::string, std::string> truth = {
+        {"kd", std::to_string(c.kd)}, {"ks", std::to_string(c.ks)}, {"n", std::to_string(c.n)},
+        {"fov", c.fov}, {"light_x", "1"}, {"light_y", "1.5"}};
+    const std::string image = render(kLit, truth, "truth", 256);
+    // The scene's own values are the truth: start elsewhere, with n off by 100x.
+    std::vector<std::string> extra = {"--kd", "0.2", "--ks", "0.1", "--n", std::to_string(c.startN)};
+    const auto d = defines(truth);
+    extra.insert(extra.end(), d.begin(), d.end());
+    const auto report = fit({kLit + ":" + image}, extra, "fit");
+    expectRecovered(report["materials"]["sphere"], c.kd, c.ks, c.n, "n = " + std::to_string(c.n));
+    EXPECT_TRUE(report["materials"]["sphere"]["unconstrained"].empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    ExponentGrid, SphereRoundTrip,
+    ::testing::Values(SphereCase{0.5, 0.4, 1, 100, "24"}, SphereCase{0.5, 0.3, 30, 3000, "24"},
+                      SphereCase{0.3, 0.6, 1000, 10, "6"}));
+
+TEST_F(RoundTrip, NoSpecularLobeLeavesNUnconstrained) {
+    const std::map<std::string, std::string> truth = {{"kd", "0.6"}, {"ks", "0"}, {"n", "30"}};
+    const std::string image = render(kLit, truth, "diffuse", 64);
+    std::vector<std::string> extra = {"--ks", "0.2", "--n", "50"};
+    const auto d = defines(truth);
+    extra.insert(extra.end(), d.begin(), d.end());
+    const auto m = fit({kLit + ":" + image}, extra, "fit")["materials"]["sphere"];
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(m["kd"][c].get<double>(), 0.6, 0.012);
+    const auto& u = m["unconstrained"];
+    EXPECT_NE(std::find(u.begin(), u.end(), "n"), u.end()) << u.dump();
+    EXPECT_DOUBLE_EQ(m["n"].get<double>(), 50) << "held at its start";
+    for (int c = 0; c < 3; ++c) EXPECT_LT(m["ks"][c].get<double>(), 0.01);
+}
+
+TEST_F(RoundTrip, NoDiffuseAndEnergyConservingExtremes) {
+    for (const auto& [kd, ks] : {std::pair{0.0, 0.7}, std::pair{0.35, 0.65}}) {
+        const std::map<std::string, std::string> truth = {
+            {"kd", std::to_string(kd)}, {"ks", std::to_string(ks)}, {"n", "40"},
+            {"light_x", "1"}, {"light_y", "1.5"}};
+        const std::string image = render(kLit, truth, "extreme", 256);
+        std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "10"};
+        const auto d = defines(truth);
+        extra.insert(extra.end(), d.begin(), d.end());
+        const auto m = fit({kLit + ":" + image}, extra, "fit")["materials"]["sphere"];
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(m["kd"][c].get<double>(), kd, 0.02 * kd + 0.005) << "kd + ks = " << kd + ks;
+            EXPECT_NEAR(m["ks"][c].get<double>(), ks, 0.02 * ks) << "kd + ks = " << kd + ks;
+            EXPECT_LE(m["kd"][c].get<double>() + m["ks"][c].get<double>(), 1 + 1e-9);
+        }
+        EXPECT_NEAR(m["n"].get<double>(), 40, 2);
+    }
+}
+
+TEST_F(RoundTrip, LdrPhotoWithClippedHighlightsIsFittedWithoutThem) {
+    const std::map<std::string, std::string> truth = {{"light_x", "1"}, {"light_y", "1.5"},
+                                                      {"intensity", "60"}};
+    const Image hdr = readImage(render(kLit, truth, "hdr", 256));
+    writePng(hdr, path("photo.png"));  // 8-bit sRGB: the highlight clips at 255
+    const Image ldr = readImage(path("photo.png"));
+    const auto clipped = std::count(ldr.clipped.begin(), ldr.clipped.end(), 1);
+    ASSERT_GT(clipped, 10) << "the test needs clipped highlight pixels";
+
+    std::vector<std::string> extra = {"--kd", "0.2", "--ks", "0.1", "--n", "300"};
+    const auto d = defines(truth);
+    extra.insert(extra.end(), d.begin(), d.end());
+    const auto report = fit({kLit + ":" + path("photo.png")}, extra, "fit");
+    EXPECT_EQ(report["views"][0]["pixels_clipped"].get<long>(), clipped);
+    // 8-bit quantisation: a looser bound than for EXR.
+    const auto& m = report["materials"]["sphere"];
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(m["kd"][c].get<double>(), 0.5, 0.02);
+        EXPECT_NEAR(m["ks"][c].get<double>(), 0.3, 0.02);
+    }
+    EXPECT_NEAR(m["n"].get<double>(), 30, 3);
+}
+
+TEST_F(RoundTrip, TwoViewsFittedJointlyBeatEitherAlone) {
+    const std::map<std::string, std::string> a = {{"light_x", "2"}, {"light_y", "0"}, {"light_z", "5"}};
+    const std::map<std::string, std::string> b = {{"light_x", "-1"}, {"light_y", "2"}, {"light_z", "6"}};
+    const std::string imageA = render(kLit, a, "a", 64), imageB = render(kLit, b, "b", 64);
+    // Each view's defines go into its scene through a copy with the light baked in.
+    auto bake = [&](const std::map<std::string, std::string>& d, const std::string& name) {
+        std::ifstream in(kLit);
+        std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        for (const auto& [k, v] : d) {
+            const std::string from = "name=\"" + k + "\" value=\"";
+            const auto at = xml.find(from);
+            const auto end = xml.find('"', at + from.size());
+            xml.replace(at + from.size(), end - at - from.size(), v);
+        }
+        std::ofstream(path(name)) << xml;
+        return path(name);
+    };
+    const std::string sceneA = bake(a, "a.xml"), sceneB = bake(b, "b.xml");
+    const std::vector<std::string> start = {"--kd", "0.2", "--ks", "0.1", "--n", "300"};
+    const auto ma = fit({sceneA + ":" + imageA}, start, "fa")["materials"]["sphere"];
+    const auto mb = fit({sceneB + ":" + imageB}, start, "fb")["materials"]["sphere"];
+    const auto mj = fit({sceneA + ":" + imageA, sceneB + ":" + imageB}, start, "fj")["materials"]["sphere"];
+    EXPECT_LT(mj["n_std"].get<double>(), std::min(ma["n_std"].get<double>(), mb["n_std"].get<double>()));
+    for (const char* key : {"kd_std", "ks_std"})
+        for (int c = 0; c < 3; ++c)
+            EXPECT_LT(mj[key][c].get<double>(),
+                      std::min(ma[key][c].get<double>(), mb[key][c].get<double>()))
+                << key << " channel " << c;
+    expectRecovered(mj, 0.5, 0.3, 30, "joint");
+}
+
+}  // namespace
+}  // namespace phongfit
