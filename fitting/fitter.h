@@ -13,12 +13,15 @@
 //
 //   g(theta) = sum over pixels  W_B Z_B^T r_A(theta) + W_A Z_A^T r_B(theta) = 0,
 //
-// with r_A = weight (I_A(theta) - y), Z_B = d I_B / d theta and W_B the robust loss' weight, both
-// taken from set B at a fixed point (the instrument point). B's noise is independent of A's, so
-// E g(theta_true) = 0 whatever the spp: the estimate is consistent in the number of pixels. The
-// instrument point starts at the recording point and moves to the solution, re-solving, until the
-// solution stays put; at that fixed point Z is the Jacobian at the estimate, as efficient as
-// least squares would be without the noise.
+// with r_A = weight (I_A(theta) - y) and instruments Z_B, W_B that are functions of set B alone:
+// B's Jacobian at a fixed point (the instrument point), averaged over the 5 x 5 pixels around (a
+// few samples make a single pixel's Jacobian as noisy as its value), and W_B the robust loss'
+// weight over the pixel's residual variance, estimated from the two sets at its neighbours. B's
+// noise is independent of A's, so E g(theta_true) = 0 whatever the spp: the estimate is
+// consistent in the number of pixels. Per round: least squares first (round 0 only: a far start
+// gives instruments with spurious roots), then the instrument point moves to the solution until
+// the solution stays put. Where the instruments are too weak (few pixels for the samples: the
+// standard errors blow up), the round keeps the instrument point and least squares' errors.
 #pragma once
 
 #include <cstddef>
@@ -80,7 +83,7 @@ struct FitOptions {
     // numbers each round, two rounds' estimates differ by about 1.4 standard errors from noise
     // alone, and no tolerance below that is ever met; 3 passes such a difference 97% of the time
     // per parameter (2 passed 84%: with 7 parameters, most rounds after the estimate had settled
-    // went on for nothing). The same test ends the instrument updates within a round.
+    // went on for nothing). The instrument updates within a round stop at `tolerance` alone.
     double tolerance = 1e-3;
     double stdTolerance = 3;
     int maxIterations = 100;  // Ceres iterations per solve
@@ -95,7 +98,9 @@ struct FitResult {
     std::vector<FitRound> rounds;
     double timeSeconds = 0;
     bool converged = false;
-    std::size_t pixelsUsed = 0;                        // last round, over all views
+    // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
+    // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
+    std::size_t pixelsUsed = 0;
     std::map<std::string, std::size_t> pixelsLeftOut;  // last round, by reason
 };
 
