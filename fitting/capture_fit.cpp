@@ -265,15 +265,10 @@ CaptureFit fitCapture(const Capture& capture, const std::vector<CaptureImage>& i
                         "be used ({})",
                         capture.dir, images.size(), describeLeftOut(out.model)));
     // The paths are exact: least squares is unbiased on them, one set serves as both of the
-    // fitter's independent recordings, and re-recording changes nothing. A second round, from
-    // the first one's solution, tells whether the solver had converged.
+    // fitter's independent recordings, and re-recording changes nothing: one round.
     FitOptions fit = options.fit;
     fit.estimator = Estimator::LeastSquares;
-    fit.maxRounds = 2;
     const std::vector<Observation>& obs = out.model.observations;
-    const auto replay = [](const std::vector<PathSet>& paths) -> PathRecorder {
-        return [&paths](int view, const std::vector<PhongMaterial>&, int) { return paths[view]; };
-    };
 
     if (!heldOutImages.empty()) {
         out.heldOut = buildCaptureModel(capture, heldOutImages, options.minCos);
@@ -284,10 +279,10 @@ CaptureFit fitCapture(const Capture& capture, const std::vector<CaptureImage>& i
                             capture.dir, heldOutImages.size(), describeLeftOut(*out.heldOut)));
     }
     out.start = startScan(out.model, true);
-    out.phong = fitMaterials(obs, replay(out.model.paths), {out.start}, fit);
+    out.phong = fitPathSets(obs, out.model.paths, out.model.paths, {out.start}, fit);
     if (out.heldOut) {
         const std::vector<PathSet> flat = withoutLobe(out.model.paths);
-        out.lambertian = fitMaterials(obs, replay(flat), {startScan(out.model, false)}, fit);
+        out.lambertian = fitPathSets(obs, flat, flat, {startScan(out.model, false)}, fit);
         out.holdout = predictCapture(*out.heldOut, out.phong.materials[0].material(),
                                      out.lambertian->materials[0].material());
     }

@@ -21,9 +21,10 @@
 #include "error.h"
 #include "identifiability.h"
 #include "material_params.h"
+#include "least_squares_residual.h"
 #include "moment_residual.h"
-#include "pixel_residual.h"
 #include "replay.h"
+#include "replay_jacobian.h"
 #include "uncertainty.h"
 
 namespace phongfit {
@@ -45,22 +46,21 @@ PhongMaterial MaterialFit::material() const {
 
 namespace {
 
-// Beyond this many free parameters the normal equations are sparse enough (each pixel touches few
-// materials) for a sparse solver to beat a dense one on a tall Jacobian.
-constexpr int kDenseLimit = 64;
 // Reflectances below this are compared absolutely in the convergence test.
 constexpr double kReflectanceFloor = 0.01;
 // Pixels per block of the parallel sums. Fixed, with a fixed reduction tree, so that sums (and the
 // fit) are bit-identical whatever the thread count.
 constexpr std::size_t kPixelBlock = 256;
-// Solves per round with the instruments moved to the last solution (FitOptions::tolerance); a far
-// start needs 3 or 4, the robust losses' weights a few more.
-constexpr int kMaxInstrumentPasses = 8;
+// Solves per round with the instruments (or least squares' robust weights) moved to the last
+// solution (FitOptions::tolerance); a far start needs 3 or 4, the robust losses' weights a few more.
+constexpr int kMaxPasses = 8;
 // Instruments are weak when they make a standard error this many times least squares' (which
 // noise in the Jacobians biases but does not blow up): measured 0.4-0.6 times where they work on
 // the Cornell box (weighted by precision, they beat plain least squares), up to 15 times on small
 // images (smoothing blurs a small highlight), 10^4 and more where they fail.
 constexpr double kWeakInstruments = 100;
+// Ceres' relative function tolerance for the moment equations, whose cost is 0 at the root.
+constexpr double kMomentTolerance = 1e-10;
 // Instruments are averaged over this many pixels on each side (RoundSolver::smoothed).
 constexpr int kInstrumentRadius = 2;
 
@@ -315,6 +315,7 @@ struct RoundOutcome {
     double rmse = 0;
     int iterations = 0;
     double minimizerSeconds = 0;
+    bool solverConverged = false;  // the round's last solve
     std::size_t pixelsUsed = 0;
     std::map<std::string, std::size_t> leftOut;
 };
@@ -337,6 +338,20 @@ struct Analysis {
         jacobian += other.jacobian;
         leastSquaresScores += other.leastSquaresScores;
         squares += other.squares;
+        return *this;
+    }
+};
+
+// Least squares' sum of squares and (if sized) its gradient and Gauss-Newton matrix, over pixels.
+struct NormalSums {
+    double squares = 0;
+    Eigen::VectorXd gradient;
+    Eigen::MatrixXd gramian;
+
+    NormalSums& operator+=(const NormalSums& other) {
+        squares += other.squares;
+        gradient += other.gradient;
+        gramian += other.gramian;
         return *this;
     }
 };
@@ -369,6 +384,7 @@ struct InstrumentSums {
 struct Minimized {
     int iterations = 0;
     double seconds = 0;
+    bool converged = true;  // Ceres stopped on a tolerance (nothing to solve counts)
 };
 
 // Whether every parameter moved from `before` to `after` (natural coordinates, per slot) by less
@@ -406,6 +422,7 @@ class RoundSolver {
         std::array<std::vector<Jacobian>, 2> jacobians;  // per set, per slot of the pixel
         Eigen::VectorXd moment;                          // P per slot of the pixel
         Eigen::MatrixXd momentJacobian;
+        std::vector<Eigen::Index> indices;  // of the pixel's natural coordinates
     };
 
 public:
@@ -416,12 +433,14 @@ public:
                 const FitOptions& options, int threads, bool warmStart)
         : start_(start),
           options_(options),
-          threads_(threads),
           slots_(int(start.size())),
           instrumental_(options.estimator == Estimator::InstrumentalVariables),
           warmStart_(instrumental_ && warmStart),
-          pooled_(instrumental_ && !warmStart_ ? std::vector<PathSet>{} : poolAll(first, second)),
-          sets_(instrumental_ ? SetLists{&first, &second} : SetLists{&pooled_}),
+          // Exact sets passed as both recordings: pooling would only double the work.
+          pooled_((instrumental_ && !warmStart_) || &first == &second ? std::vector<PathSet>{}
+                                                                      : poolAll(first, second)),
+          leastSquaresSets_(&first == &second ? &first : &pooled_),
+          sets_(instrumental_ ? SetLists{&first, &second} : SetLists{leastSquaresSets_}),
           prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0)),
           loss_(makeLoss(options, prep_.meanObserved)),
           arena_(threads) {}
@@ -439,12 +458,14 @@ public:
                 if (isHeld(held[s], i)) y[i] = y0[i];
             toInternal<P>(y.data(), held[s], block(s));
         }
-        std::vector<NaturalVector> instrumentPoint;  // in natural coordinates
+        // Where the instruments (or least squares' robust weights) were taken, in natural
+        // coordinates; empty while least squares' weights are all 1.
+        std::vector<NaturalVector> passPoint;
         // Instruments far from the solution (a far start: n off by 10x) give moment equations with
         // spurious roots; least squares, biased but a true minimisation, lands near enough. Without
         // the robust loss: on few samples per pixel most of the highlight looks like outliers.
         if (warmStart_) {
-            const Minimized m = minimizeLeastSquares(held, nullptr);
+            const Minimized m = minimizeLeastSquares(held);
             out.iterations += m.iterations;
             out.minimizerSeconds += m.seconds;
         }
@@ -453,15 +474,15 @@ public:
         if (instrumental_) {
             analysis = analyse(held);
             adoptInstruments();
-            instrumentPoint = naturalBlocks(held);
+            passPoint = naturalBlocks(held);
             instrumentX = x_;
         }
         const std::vector<std::vector<double>> noStd(slots_, std::vector<double>(P, 0.0));
         for (int pass = 1;;) {
-            const Minimized m =
-                instrumental_ ? minimizeMoments(held) : minimizeLeastSquares(held, loss_.get());
+            const Minimized m = instrumental_ ? minimizeMoments(held) : minimizeLeastSquares(held);
             out.iterations += m.iterations;
             out.minimizerSeconds += m.seconds;
+            out.solverConverged = m.converged;
             analysis = analyse(held);
             out.naturalStd = naturalStd(analysis.jacobian, analysis.scores, held);
             const std::vector<std::vector<double>> leastSquaresStd =
@@ -472,16 +493,25 @@ public:
                 x_ = instrumentX;
                 analysis = analyse(held);
                 out.naturalStd = naturalStd(analysis.gram, analysis.leastSquaresScores, held);
-            } else if (instrumental_ && pass < kMaxInstrumentPasses &&
-                       !withinTolerance<P>(instrumentPoint, naturalBlocks(held), noStd, options_)) {
+            } else if ((instrumental_ || loss_) && pass < kMaxPasses &&
+                       (passPoint.empty() ||
+                        !withinTolerance<P>(passPoint, naturalBlocks(held), noStd, options_))) {
                 // The estimate is consistent whatever the instruments; instruments at the
                 // estimate make it efficient, robust weights at the estimate make it robust, and
                 // moving them there until the estimate stays put (to the tolerance alone: the
                 // standard errors of a solve on instruments far from it can be anything) makes
-                // it independent of where the round started.
-                adoptInstruments();
-                instrumentPoint = naturalBlocks(held);
-                instrumentX = x_;
+                // it independent of where the round started. Least squares with a robust loss is
+                // solved the same way, by iteratively reweighted least squares: its first pass
+                // is plain least squares (from a far start, most of a highlight would look like
+                // outliers), each next one weights pixels by the loss at the last solution, and
+                // the fixed point solves the robust estimating equations.
+                if (instrumental_) {
+                    adoptInstruments();
+                    instrumentX = x_;
+                } else {
+                    leastSquaresWeights_ = weights_[0];
+                }
+                passPoint = naturalBlocks(held);
                 ++pass;
                 continue;
             }
@@ -626,10 +656,7 @@ private:
         std::vector<std::uint32_t> blockSlots;
         std::vector<double*> blocks;
         if (addParameterBlocks(problem, held, blockSlots, blocks) == 0) return {};
-        std::vector<int> free;
-        for (std::uint32_t s : blockSlots)
-            for (int i = 0; i < P; ++i)
-                if (!isHeld(held[s], i)) free.push_back(int(s) * P + i);
+        const std::vector<int> free = freeIndices(held, blockSlots);
         const auto moments = [this](const double* y, Eigen::VectorXd& g, Eigen::MatrixXd* dg) {
             momentSums(y, g, dg);
         };
@@ -637,50 +664,56 @@ private:
             new MomentResidual<P>(moments, blockSlots, held, free, whitening(free)), nullptr,
             blocks);
         // One small dense block: the time is in the pixel sums, which run in parallel already.
-        return run(problem, ceres::DENSE_QR, 1,
-                   ceres::Solver::Options().initial_trust_region_radius);
+        return run(problem, ceres::Solver::Options().initial_trust_region_radius, kMomentTolerance);
     }
 
-    Minimized minimizeLeastSquares(const std::vector<HeldParams>& held, ceres::LossFunction* loss) {
-        ceres::Problem::Options problemOptions;
-        problemOptions.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-        ceres::Problem problem(problemOptions);
+    // The natural coordinates slot * P + i of the blocks' slots that are not held.
+    std::vector<int> freeIndices(const std::vector<HeldParams>& held,
+                                 const std::vector<std::uint32_t>& blockSlots) const {
+        std::vector<int> free;
+        for (std::uint32_t s : blockSlots)
+            for (int i = 0; i < P; ++i)
+                if (!isHeld(held[s], i)) free.push_back(int(s) * P + i);
+        return free;
+    }
+
+    Minimized minimizeLeastSquares(const std::vector<HeldParams>& held) {
+        ceres::Problem problem;
         std::vector<std::uint32_t> blockSlots;
         std::vector<double*> blocks;
-        const int freeCount = addParameterBlocks(problem, held, blockSlots, blocks);
-        if (freeCount == 0) return {};
-        const std::span<const HeldParams> heldSpan(held);
-        for (const UsedPixel& u : prep_.pixels) {
-            // The others have a residual that does not depend on the parameters.
-            if (!u.seesMaterial) continue;
-            const std::span<const std::uint32_t> slots = pixelSlots(u);
-            blocks.clear();
-            for (std::uint32_t s : slots) blocks.push_back(block(int(s)));
-            problem.AddResidualBlock(new PixelResidual<P>(pooled_[u.view], u.pixel, u.observed,
-                                                          u.weight, slots, heldSpan),
-                                     loss, blocks.data(), int(blocks.size()));
-        }
+        if (addParameterBlocks(problem, held, blockSlots, blocks) == 0) return {};
+        const auto sums = [this](const double* y, double& squares, Eigen::VectorXd* gradient,
+                                 Eigen::MatrixXd* gramian) {
+            leastSquaresSums(y, squares, gradient, gramian);
+        };
+        problem.AddResidualBlock(new LeastSquaresResidual<P>(sums, blockSlots, held,
+                                                             freeIndices(held, blockSlots)),
+                                 nullptr, blocks);
         // A far start's first Gauss-Newton step can jump log n to its bound, where the lobe is
         // invisible and the diffuse part alone fits better than at the start: a dead end (n = 0.3
         // for a true 30 went to 1e6). Start with steps that change log n by about 1 at most.
-        return run(problem,
-                   freeCount <= kDenseLimit ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY,
-                   threads_, 1.0);
+        // Stop once a step changes the cost by less than moving a tenth of a standard error does:
+        // with cost C at the minimum over N residuals, k standard errors cost about k^2 C / N
+        // more. Where the model does not fit exactly (photographs) Gauss-Newton converges only
+        // linearly, each step about half the last, and a fixed tolerance of 1e-10 took 12 steps
+        // on the DiLiGenT ball where 8 reach that.
+        const double residuals = 3.0 * double(prep_.seeingMaterial);
+        return run(problem, 1.0, std::max(kMomentTolerance, 0.01 / residuals));
     }
 
-    // `initialRadius`: Ceres' initial trust region radius, in its Jacobi-scaled coordinates.
-    Minimized run(ceres::Problem& problem, ceres::LinearSolverType linearSolver, int threads,
-                  double initialRadius) {
+    // One small dense residual block: the time is in its pixel sums, which run in parallel.
+    // `initialRadius`: Ceres' initial trust region radius, in its Jacobi-scaled coordinates;
+    // `functionTolerance`: the relative cost change it stops at.
+    Minimized run(ceres::Problem& problem, double initialRadius, double functionTolerance) {
         ceres::Solver::Options solverOptions;
-        solverOptions.linear_solver_type = linearSolver;
+        solverOptions.linear_solver_type = ceres::DENSE_QR;
         // Dogleg reuses one factorization across rejected steps, which the far starts (n off by
         // 100x) produce several of; measured 2x fewer Jacobian evaluations than
         // Levenberg-Marquardt.
         solverOptions.trust_region_strategy_type = ceres::DOGLEG;
-        solverOptions.num_threads = threads;
         solverOptions.initial_trust_region_radius = initialRadius;
         solverOptions.max_num_iterations = options_.maxIterations;
-        solverOptions.function_tolerance = 1e-10;
+        solverOptions.function_tolerance = functionTolerance;
         solverOptions.parameter_tolerance = 1e-10;
         solverOptions.logging_type =
             options_.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
@@ -691,7 +724,8 @@ private:
         if (!summary.IsSolutionUsable())
             throw Error(fmt::format("the fit failed: {}", summary.message));
         return {summary.num_successful_steps + summary.num_unsuccessful_steps,
-                summary.minimizer_time_in_seconds};
+                summary.minimizer_time_in_seconds,
+                summary.termination_type == ceres::CONVERGENCE};
     }
 
     // L^-1 with L L^T the Gram matrix of the instruments over the free natural coordinates.
@@ -719,11 +753,16 @@ private:
     // its weighted Jacobians per slot of the pixel, in scratch.jacobians[k].
     Eigen::Vector3d residual(int k, const UsedPixel& u, const double* y, Scratch& scratch,
                              bool jacobians) const {
-        const PathSet& paths = (*sets_[k])[u.view];
+        return residual((*sets_[k])[u.view], u, y, scratch,
+                        jacobians ? &scratch.jacobians[k] : nullptr);
+    }
+
+    Eigen::Vector3d residual(const PathSet& paths, const UsedPixel& u, const double* y,
+                             Scratch& scratch, std::vector<Jacobian>* jacobians) const {
         const std::span<const std::uint32_t> slots = pixelSlots(u);
         Color3 predicted = Color3::Zero();
-        if (jacobians) {
-            std::vector<Jacobian>& j = scratch.jacobians[k];
+        if (jacobians != nullptr) {
+            std::vector<Jacobian>& j = *jacobians;
             j.resize(u.slotCount);
             for (std::uint32_t b = 0; b < u.slotCount; ++b) {
                 predicted = replayNaturalJacobian<P>(paths, u.pixel, slots, y, slots[b],
@@ -760,6 +799,40 @@ private:
         });
     }
 
+    // Sum over the pixels that see a material (the others' residuals do not depend on y) of
+    // w |r|^2, with w the robust weights of the last reweighting (1 before any), and of w J^T r
+    // and w J^T J if asked.
+    void leastSquaresSums(const double* y, double& squares, Eigen::VectorXd* gradient,
+                          Eigen::MatrixXd* gramian) {
+        const Eigen::Index size = Eigen::Index(slots_) * P;
+        const bool withJacobian = gradient != nullptr;
+        const NormalSums zero{0.0, withJacobian ? Eigen::VectorXd::Zero(size) : Eigen::VectorXd(),
+                              withJacobian ? Eigen::MatrixXd::Zero(size, size) : Eigen::MatrixXd()};
+        NormalSums sums = sumOverPixels(
+            prep_.seeingMaterial, zero, [&](std::size_t i, NormalSums& sum, Scratch& scratch) {
+                const UsedPixel& u = prep_.pixels[i];
+                const double w = leastSquaresWeights_.empty() ? 1.0 : leastSquaresWeights_[i];
+                std::vector<Jacobian>& j = scratch.jacobians[0];
+                const Eigen::Vector3d r = residual((*leastSquaresSets_)[u.view], u, y, scratch,
+                                                   withJacobian ? &j : nullptr);
+                sum.squares += w * r.squaredNorm();
+                if (!withJacobian) return;
+                const std::span<const std::uint32_t> slots = pixelSlots(u);
+                for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                    const Eigen::Index row = Eigen::Index(slots[a]) * P;
+                    addPackedGradient<P>(sum.gradient.template segment<P>(row), w, j[a], r);
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                        addPackedGram<P>(
+                            sum.gramian.template block<P, P>(row, Eigen::Index(slots[b]) * P), w,
+                            j[a], j[b]);
+                }
+            });
+        squares = sums.squares;
+        if (!withJacobian) return;
+        *gradient = std::move(sums.gradient);
+        *gramian = std::move(sums.gramian);
+    }
+
     // g(y) = sum over pixels and sets k of W_other Z_other^T r_k(y), and dg/dy if asked.
     void momentSums(const double* y, Eigen::VectorXd& g, Eigen::MatrixXd* jacobian) {
         const Eigen::Index size = Eigen::Index(slots_) * P;
@@ -777,11 +850,12 @@ private:
                     for (std::uint32_t a = 0; a < u.slotCount; ++a) {
                         const Jacobian z = w * instruments_[other][u.slotBegin + a];
                         const Eigen::Index row = Eigen::Index(slots[a]) * P;
-                        sum.g.template segment<P>(row) += z.transpose() * r;
+                        addPackedGradient<P>(sum.g.template segment<P>(row), 1.0, z, r);
                         if (!withJacobian) continue;
                         for (std::uint32_t b = 0; b < u.slotCount; ++b)
-                            sum.jacobian.template block<P, P>(row, Eigen::Index(slots[b]) * P) +=
-                                z.transpose() * scratch.jacobians[k][b];
+                            addPackedGram<P>(
+                                sum.jacobian.template block<P, P>(row, Eigen::Index(slots[b]) * P),
+                                1.0, z, scratch.jacobians[k][b]);
                     }
                 }
             });
@@ -822,10 +896,10 @@ private:
                     mean += r / sets;
                     for (std::uint32_t a = 0; a < u.slotCount; ++a) {
                         jacobians_[k][u.slotBegin + a] = j[a];
-                        l.segment<P>(Eigen::Index(a) * P) += rho / sets * j[a].transpose() * r;
+                        addPackedGradient<P>(l.segment<P>(Eigen::Index(a) * P), rho / sets, j[a], r);
                         for (std::uint32_t b = 0; u.seesMaterial && b < u.slotCount; ++b)
-                            sum.gram.block<P, P>(at(a), at(b)) +=
-                                rho / sets * j[a].transpose() * j[b];
+                            addPackedGram<P>(sum.gram.block<P, P>(at(a), at(b)), rho / sets, j[a],
+                                             j[b]);
                     }
                 }
                 if (!u.seesMaterial) return;
@@ -859,11 +933,12 @@ private:
             const std::vector<Jacobian>& z = instrumental_ ? instruments_[other] : jacobians_[k];
             const double w = instrumental_ ? lossWeights_[other][i] : weights_[k][i];
             for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                const Jacobian za = w * z[u.slotBegin + a];
-                m.segment<P>(Eigen::Index(a) * P) += za.transpose() * residuals_[k][i];
+                const Jacobian& za = z[u.slotBegin + a];
+                addPackedGradient<P>(m.segment<P>(Eigen::Index(a) * P), w, za, residuals_[k][i]);
                 for (std::uint32_t b = 0; jacobian != nullptr && b < u.slotCount; ++b)
-                    jacobian->block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P) +=
-                        za.transpose() * jacobians_[k][u.slotBegin + b];
+                    addPackedGram<P>(
+                        jacobian->block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P), w, za,
+                        jacobians_[k][u.slotBegin + b]);
             }
         }
     }
@@ -878,7 +953,8 @@ private:
             [&](std::size_t i, Eigen::MatrixXd& sum, Scratch& scratch) {
                 const UsedPixel& u = prep_.pixels[i];
                 const std::span<const std::uint32_t> slots = pixelSlots(u);
-                std::vector<Eigen::Index> indices;
+                std::vector<Eigen::Index>& indices = scratch.indices;
+                indices.clear();
                 for (std::uint32_t s : slots)
                     for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
                 // A pixel that sees no material does not pull on the estimate.
@@ -1068,11 +1144,11 @@ private:
 
     const std::vector<PhongMaterial>& start_;
     const FitOptions& options_;
-    int threads_;
     int slots_;
     bool instrumental_;
     bool warmStart_;
     std::vector<PathSet> pooled_;  // for least squares
+    const std::vector<PathSet>* leastSquaresSets_;
     SetLists sets_;
     Prepared prep_;
     std::unique_ptr<ceres::LossFunction> loss_;
@@ -1086,6 +1162,7 @@ private:
     // The same at the instrument point, and the instruments' Gram matrix (instrumental variables).
     std::array<std::vector<Jacobian>, 2> instruments_;
     std::array<std::vector<double>, 2> lossWeights_;
+    std::vector<double> leastSquaresWeights_;  // per pixel; empty: all 1
     Eigen::MatrixXd instrumentGram_;
     Eigen::VectorXd constantMoments_;  // g's terms from the pixels that see no material
 };
@@ -1141,7 +1218,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             after.push_back(naturalFromPhong<P>(out.materials[s].material()));
             theta[s] = out.materials[s].material();
         }
-        result.converged = withinTolerance<P>(before, after, out.naturalStd, options);
+        // Exact sets (the same list as both recordings) give the same problem every round: the
+        // solver's own convergence is the answer.
+        result.converged = withinTolerance<P>(before, after, out.naturalStd, options) ||
+                           (sets.first == sets.second && out.solverConverged);
         result.materials = out.materials;
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
@@ -1188,11 +1268,12 @@ FitResult fitMaterials(const std::vector<Observation>& observations, const PathR
 
 FitResult fitPathSets(const std::vector<Observation>& observations,
                       const std::vector<PathSet>& first, const std::vector<PathSet>& second,
-                      const std::vector<PhongMaterial>& start, const FitOptions& options) {
+                      const std::vector<PhongMaterial>& start, const FitOptions& options,
+                      int rounds) {
     const RecordAll recordAll = [&](const std::vector<PhongMaterial>&, int) {
         return RoundSets{&first, &second};
     };
-    return fit(observations, recordAll, start, options, 1);
+    return fit(observations, recordAll, start, options, rounds);
 }
 
 }  // namespace phongfit

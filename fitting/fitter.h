@@ -97,6 +97,8 @@ struct FitResult {
     double rmse = 0;                     // of the last round
     std::vector<FitRound> rounds;
     double timeSeconds = 0;
+    // The parameters stopped moving between rounds or, on exact path sets (the same list passed
+    // as both recordings), the solver converged.
     bool converged = false;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
@@ -117,10 +119,12 @@ using PathRecorder =
 FitResult fitMaterials(const std::vector<Observation>& observations, const PathRecorder& record,
                        const std::vector<PhongMaterial>& start, const FitOptions& options = {});
 
-// One round on given path sets (no re-recording): `first` and `second` hold one set per view,
-// independent recordings of the same scene. Exact (noise-free) sets may be passed twice.
+// Rounds on given path sets, without re-recording (a round after the first starts from the last
+// solution): `first` and `second` hold one set per view, independent recordings of the same scene.
+// Exact (noise-free) sets are passed as the same list twice, which least squares replays once.
 FitResult fitPathSets(const std::vector<Observation>& observations,
                       const std::vector<PathSet>& first, const std::vector<PathSet>& second,
-                      const std::vector<PhongMaterial>& start, const FitOptions& options = {});
+                      const std::vector<PhongMaterial>& start, const FitOptions& options = {},
+                      int rounds = 1);
 
 }  // namespace phongfit

@@ -26,6 +26,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <span>
 #include <vector>
 
 #include "phong_brdf.h"
@@ -142,6 +144,25 @@ std::vector<int> heldCoordinates(const HeldParams& held) {
         if (held.ks[g]) constant.push_back(L::specular(g));
     if (held.n) constant.push_back(L::kLogN);
     return constant;
+}
+
+// The natural coordinates of Ceres' parameter blocks, P per slot (0 for slots without a block);
+// `slots` gives each block's slot, `held` is indexed by slot.
+template <int P>
+std::vector<double> naturalFromBlocks(double const* const* parameters,
+                                      const std::vector<std::uint32_t>& slots,
+                                      std::span<const HeldParams> held) {
+    std::vector<double> y(held.size() * P, 0.0);
+    for (std::size_t b = 0; b < slots.size(); ++b)
+        toNatural<P>(parameters[b], held[slots[b]], y.data() + std::size_t(slots[b]) * P);
+    return y;
+}
+
+// Whether Ceres asks for the Jacobian of any of `blocks` parameter blocks.
+inline bool wantsJacobian(double** jacobians, std::size_t blocks) {
+    for (std::size_t b = 0; jacobians != nullptr && b < blocks; ++b)
+        if (jacobians[b] != nullptr) return true;
+    return false;
 }
 
 // dy/dx at x, for the delta method (natural covariance = D C_x D^T).

@@ -47,14 +47,10 @@ public:
 
     bool Evaluate(double const* const* parameters, double* residuals,
                   double** jacobians) const override {
-        std::vector<double> y(held_.size() * P, 0.0);
-        for (std::size_t b = 0; b < slots_.size(); ++b)
-            toNatural<P>(parameters[b], held_[slots_[b]], y.data() + std::size_t(slots_[b]) * P);
+        const std::vector<double> y = naturalFromBlocks<P>(parameters, slots_, held_);
+        const bool wantJacobian = wantsJacobian(jacobians, slots_.size());
         Eigen::VectorXd g;
         Eigen::MatrixXd dg;
-        bool wantJacobian = false;
-        for (std::size_t b = 0; jacobians != nullptr && b < slots_.size(); ++b)
-            wantJacobian = wantJacobian || jacobians[b] != nullptr;
         moments_(y.data(), g, wantJacobian ? &dg : nullptr);
         const Eigen::Index rows = Eigen::Index(free_.size());
         Eigen::Map<Eigen::VectorXd>(residuals, rows) = whitening_ * g(free_);

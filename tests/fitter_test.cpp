@@ -319,6 +319,29 @@ TEST(Uncertainty, LeaveOneOutScoreUndoesAPixelsPullOnTheFit) {
     EXPECT_GT((fitted - expected).norm(), 0.5 * expected.norm());  // the leverage is large
 }
 
+TEST(Uncertainty, LeaveOneOutScoreOfALowLeveragePixelAmongMany) {
+    // 3000 points: the last one pulls little (the series path), and the correction is still exact.
+    const int count = 3000;
+    Eigen::MatrixXd j(count, 2);
+    Eigen::VectorXd y(count);
+    for (int i = 0; i < count; ++i) {
+        j(i, 0) = 1;
+        j(i, 1) = 0.01 * i;
+        y[i] = 0.5 + 0.02 * i + 0.3 * std::sin(1.7 * i);
+    }
+    const auto fit = [](const Eigen::MatrixXd& a, const Eigen::VectorXd& b) {
+        return Eigen::VectorXd((a.transpose() * a).inverse() * a.transpose() * b);
+    };
+    const Eigen::VectorXd all = fit(j, y), withoutLast = fit(j.topRows(count - 1), y.head(count - 1));
+    const Eigen::MatrixXd g = j.transpose() * j;
+    const Eigen::VectorXd jp = j.row(count - 1).transpose();
+    const Eigen::VectorXd fitted = jp * (jp.dot(all) - y[count - 1]);
+    const Eigen::VectorXd corrected = leaveOneOutScore(jp * jp.transpose(), g.inverse(), fitted);
+    const Eigen::VectorXd expected = jp * (jp.dot(withoutLast) - y[count - 1]);
+    EXPECT_LT((corrected - expected).norm(), 1e-8 * expected.norm());
+    EXPECT_GT((fitted - expected).norm(), 1e-4 * expected.norm());  // there is a correction
+}
+
 // ---- Recovery
 
 TEST(Fitter, RecoversFromFarStartOnExactData) {

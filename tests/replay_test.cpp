@@ -10,8 +10,9 @@
 #include <vector>
 
 #include "material_params.h"
+#include "least_squares_residual.h"
 #include "moment_residual.h"
-#include "pixel_residual.h"
+#include "replay_jacobian.h"
 
 namespace phongfit {
 namespace {
@@ -186,64 +187,108 @@ TEST(Replay, JetGradientsMatchCentralDifferences) {
     EXPECT_GT(checked, 200);
 }
 
+// sum over pixels of |1.5 (I_p - observed)|^2 through LeastSquaresResidual: its residual and
+// Jacobian must give Ceres the cost, gradient and Gauss-Newton matrix of the stacked per-pixel
+// residuals R(x), whose Jacobian is taken here by central differences in the internal
+// coordinates (the free ones: Ceres' manifold holds the others).
 template <int P>
-void checkResidualGradients(const HeldParams& heldFirst) {
+void checkLeastSquaresBlock(const HeldParams& heldFirst) {
     const RandomPaths r(30, 3);
     const std::vector<PhongMaterial> theta = twoMaterials();
     const std::vector<HeldParams> held = {heldFirst, HeldParams{}};
     double x[2][P];
     for (int s = 0; s < 2; ++s) toInternal<P>(naturalFromPhong<P>(theta[s]).data(), held[s], x[s]);
     const std::vector<std::uint32_t> bothSlots = {0, 1};
-    int probed = 0;
-    for (int p = 0; p < r.paths.width; ++p) {
-        if (r.direct[p].empty()) continue;
-        const Color3 observed(0.3, 0.2, 0.1);
-        const PixelResidual<P> residual(r.paths, std::uint32_t(p), observed, 1.5, bothSlots, held);
-        const std::vector<const ceres::Manifold*>* noManifolds = nullptr;
-        ceres::NumericDiffOptions numeric;
-        numeric.ridders_relative_initial_step_size = 1e-4;  // the lobe in log n is stiff
-        ceres::GradientChecker checker(&residual, noManifolds, numeric);
-        ceres::GradientChecker::ProbeResults results;
-        const double* parameters[2] = {x[0], x[1]};
-        checker.Probe(parameters, 1e-6, &results);
-        ASSERT_TRUE(results.return_value);
-        // The checker's own verdict is relative per entry, which rounding fails where a derivative
-        // underflows to ~1e-18; compare relative to the block's scale instead.
-        for (int b = 0; b < 2; ++b) {
-            const Eigen::MatrixXd& user = results.jacobians[b];
-            const Eigen::MatrixXd& numericJacobian = results.numeric_jacobians[b];
-            const double scale = numericJacobian.cwiseAbs().maxCoeff();
-            EXPECT_LE((user - numericJacobian).cwiseAbs().maxCoeff(), 1e-7 * scale)
-                << "pixel " << p << " block " << b << "\n"
-                << results.error_log;
+    const Color3 observed(0.3, 0.2, 0.1);
+    const int pixels = r.paths.width;
+    const auto stacked = [&](const double (&at)[2][P]) {
+        const std::vector<PhongMaterial> phong = {toPhong<P>(at[0], held[0]),
+                                                  toPhong<P>(at[1], held[1])};
+        Eigen::VectorXd out(3 * pixels);
+        for (int p = 0; p < pixels; ++p)
+            out.segment<3>(3 * p) = (1.5 * (replayPixel(r.paths, p, phong.data()) - observed)).matrix();
+        return out;
+    };
+    const auto sums = [&](const double* y, double& squares, Eigen::VectorXd* gradient,
+                          Eigen::MatrixXd* gramian) {
+        squares = 0;
+        if (gradient != nullptr) {
+            gradient->setZero(2 * P);
+            gramian->setZero(2 * P, 2 * P);
         }
-
-        // Residuals alone equal the ones computed along with the Jacobian.
-        double plain[3], withJacobian[3], jacobian0[3 * P], jacobian1[3 * P];
-        double* jacobians[2] = {jacobian0, jacobian1};
-        ASSERT_TRUE(residual.Evaluate(parameters, plain, nullptr));
-        ASSERT_TRUE(residual.Evaluate(parameters, withJacobian, jacobians));
-        const std::vector<PhongMaterial> phong = {toPhong<P>(x[0], held[0]),
-                                                  toPhong<P>(x[1], held[1])};
-        const Color3 predicted = replayPixel(r.paths, p, phong.data());
-        for (int c = 0; c < 3; ++c) {
-            EXPECT_DOUBLE_EQ(plain[c], withJacobian[c]);
-            EXPECT_NEAR(plain[c], 1.5 * (predicted[c] - observed[c]), 1e-12);
+        std::vector<PhongParams<PackedJet>> scratch(2);
+        for (int p = 0; p < pixels; ++p) {
+            Eigen::Matrix<double, 3, P> jacobian[2];
+            Color3 predicted;
+            for (std::uint32_t b = 0; b < 2; ++b)
+                predicted = replayNaturalJacobian<P>(r.paths, p, bothSlots, y, b, scratch, jacobian[b]);
+            const Eigen::Vector3d residual = (1.5 * (predicted - observed)).matrix();
+            squares += residual.squaredNorm();
+            for (int a = 0; gradient != nullptr && a < 2; ++a) {
+                gradient->template segment<P>(a * P) += 1.5 * jacobian[a].transpose() * residual;
+                for (int b = 0; b < 2; ++b)
+                    gramian->template block<P, P>(a * P, b * P) +=
+                        2.25 * jacobian[a].transpose() * jacobian[b];
+            }
         }
-        ++probed;
+    };
+    std::vector<int> free, freeX;  // natural indices; internal ones
+    for (int s = 0; s < 2; ++s) {
+        const std::vector<int> constant = heldCoordinates<P>(held[s]);
+        for (int i = 0; i < P; ++i)
+            if (std::find(constant.begin(), constant.end(), i) == constant.end()) {
+                free.push_back(s * P + i);
+                freeX.push_back(s * P + i);
+            }
     }
-    EXPECT_GT(probed, 15);
+    const LeastSquaresResidual<P> block(sums, bothSlots, held, free);
+    const int f = int(free.size());
+    ASSERT_EQ(block.num_residuals(), f + 1);
+
+    Eigen::MatrixXd numeric(3 * pixels, f);
+    for (int k = 0; k < f; ++k) {
+        double plus[2][P], minus[2][P];
+        std::copy(&x[0][0], &x[0][0] + 2 * P, &plus[0][0]);
+        std::copy(&x[0][0], &x[0][0] + 2 * P, &minus[0][0]);
+        const int s = freeX[k] / P, i = freeX[k] % P;
+        const double h = 1e-6 * std::max(1.0, std::abs(x[s][i]));
+        plus[s][i] += h;
+        minus[s][i] -= h;
+        numeric.col(k) = (stacked(plus) - stacked(minus)) / (2 * h);
+    }
+    const Eigen::VectorXd residuals = stacked(x);
+
+    Eigen::VectorXd c(f + 1), plain(f + 1);
+    Eigen::Matrix<double, Eigen::Dynamic, P, Eigen::RowMajor> j0(f + 1, P), j1(f + 1, P);
+    double* jacobians[2] = {j0.data(), j1.data()};
+    const double* parameters[2] = {x[0], x[1]};
+    ASSERT_TRUE(block.Evaluate(parameters, c.data(), jacobians));
+    ASSERT_TRUE(block.Evaluate(parameters, plain.data(), nullptr));
+    Eigen::MatrixXd jc(f + 1, f);
+    for (int k = 0; k < f; ++k) jc.col(k) = (freeX[k] < P ? j0 : j1).col(freeX[k] % P);
+
+    const double cost = residuals.squaredNorm();
+    EXPECT_NEAR(c.squaredNorm(), cost, 1e-10 * cost);
+    EXPECT_NEAR(plain.squaredNorm(), cost, 1e-10 * cost);
+    const Eigen::VectorXd gradient = numeric.transpose() * residuals;
+    EXPECT_LE((jc.transpose() * c - gradient).norm(), 1e-6 * gradient.norm()) << gradient.transpose();
+    const Eigen::MatrixXd gauss = numeric.transpose() * numeric;
+    EXPECT_LE((jc.transpose() * jc - gauss).norm(), 1e-6 * gauss.norm());
 }
 
-TEST(PixelResidual, PassesGradientCheckerRgb) { checkResidualGradients<kRgbBlock>(HeldParams{}); }
+TEST(LeastSquaresResidual, GivesTheStackedResidualsCostGradientAndGaussNewtonMatrixRgb) {
+    checkLeastSquaresBlock<kRgbBlock>(HeldParams{});
+}
 
-TEST(PixelResidual, PassesGradientCheckerGrey) { checkResidualGradients<kGreyBlock>(HeldParams{}); }
+TEST(LeastSquaresResidual, GivesTheStackedResidualsCostGradientAndGaussNewtonMatrixGrey) {
+    checkLeastSquaresBlock<kGreyBlock>(HeldParams{});
+}
 
-TEST(PixelResidual, PassesGradientCheckerWithHeldDiffuse) {
+TEST(LeastSquaresResidual, GivesTheStackedResidualsCostGradientAndGaussNewtonMatrixWithHeld) {
     HeldParams held;
     held.kd = {true, false, true};
     held.n = true;
-    checkResidualGradients<kRgbBlock>(held);
+    checkLeastSquaresBlock<kRgbBlock>(held);
 }
 
 // Moment equations g = sum over pixels and slots of Z^T r, random instruments Z against the

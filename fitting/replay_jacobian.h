@@ -1,0 +1,104 @@
+// A pixel's replayed prediction I_p and its derivatives with respect to the natural coordinates of
+// a material slot.
+//
+// Derivatives are forward-mode Jets through the same replay and BRDF code as the prediction, packed
+// by channel: every term of I_p is a per-channel product, so channel c of the prediction depends on
+// kd_c, ks_c and n only. Seeding kd_c in Jet component 0 and ks_c in component 1 for every channel,
+// and log n in component 2, gives in channel c of the result d/d(kd_c, ks_c, log n) with 3-wide
+// Jets instead of 7-wide ones (the replay is where the time goes). A pixel that touches k slots is
+// replayed once per slot with only that slot seeded.
+#pragma once
+
+#include <ceres/jet.h>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "material_params.h"
+#include "replay.h"
+
+namespace phongfit {
+
+using PackedJet = ceres::Jet<double, 3>;
+
+// Channel-packed Jets of a material given by its natural coordinates y (see above).
+template <int P>
+PhongParams<PackedJet> packedParams(const double* y) {
+    using L = BlockLayout<P>;
+    PhongParams<PackedJet> m;
+    for (int c = 0; c < 3; ++c) {
+        m.kd[c] = PackedJet(y[L::diffuse(L::group(c))], 0);
+        m.ks[c] = PackedJet(y[L::specular(L::group(c))], 1);
+    }
+    m.n = exp(PackedJet(y[L::kLogN], 2));
+    return m;
+}
+
+template <typename T>
+PhongParams<T> constantParams(const PhongMaterial& m) {
+    PhongParams<T> p;
+    for (int c = 0; c < 3; ++c) {
+        p.kd[c] = T(m.kd[c]);
+        p.ks[c] = T(m.ks[c]);
+    }
+    p.n = T(m.n);
+    return p;
+}
+
+// The pixel's prediction and its derivatives with respect to the natural coordinates (kd, ks,
+// log n; see material_params.h) of slot `seeded`. `y` holds P natural coordinates per slot and is
+// read for the slots in `slots`; `theta` is scratch with one entry per slot.
+template <int P>
+Color3 replayNaturalJacobian(const PathSet& paths, std::uint32_t pixel,
+                             std::span<const std::uint32_t> slots, const double* y,
+                             std::uint32_t seeded, std::vector<PhongParams<PackedJet>>& theta,
+                             Eigen::Matrix<double, 3, P>& jacobian) {
+    using L = BlockLayout<P>;
+    for (std::uint32_t s : slots) {
+        const double* ys = y + std::size_t(s) * P;
+        theta[s] =
+            s == seeded ? packedParams<P>(ys) : constantParams<PackedJet>(naturalToPhong<P>(ys));
+    }
+    const Color<PackedJet> predicted = replayPixel(paths, pixel, theta.data());
+    jacobian.setZero();
+    Color3 value;
+    for (int c = 0; c < 3; ++c) {
+        value[c] = predicted[c].a;
+        jacobian(c, L::diffuse(L::group(c))) = predicted[c].v[0];
+        jacobian(c, L::specular(L::group(c))) = predicted[c].v[1];
+        jacobian(c, L::kLogN) = predicted[c].v[2];
+    }
+    return value;
+}
+
+// out += w a^T b for two Jacobians shaped as replayNaturalJacobian leaves them: row c is 0 but for
+// kd and ks of c's colour group and log n. 27 products instead of 3 P^2; the fitter's sums over
+// millions of pixels are made of these.
+template <int P, typename Out>
+void addPackedGram(Out&& out, double w, const Eigen::Matrix<double, 3, P>& a,
+                   const Eigen::Matrix<double, 3, P>& b) {
+    using L = BlockLayout<P>;
+    for (int c = 0; c < 3; ++c) {
+        const int columns[3] = {L::diffuse(L::group(c)), L::specular(L::group(c)), L::kLogN};
+        for (int i : columns) {
+            const double wa = w * a(c, i);
+            for (int k : columns) out(i, k) += wa * b(c, k);
+        }
+    }
+}
+
+// out += w a^T r, with a shaped as in addPackedGram.
+template <int P, typename Out>
+void addPackedGradient(Out&& out, double w, const Eigen::Matrix<double, 3, P>& a,
+                       const Eigen::Vector3d& r) {
+    using L = BlockLayout<P>;
+    for (int c = 0; c < 3; ++c) {
+        const double wr = w * r[c];
+        out[L::diffuse(L::group(c))] += wr * a(c, L::diffuse(L::group(c)));
+        out[L::specular(L::group(c))] += wr * a(c, L::specular(L::group(c)));
+        out[L::kLogN] += wr * a(c, L::kLogN);
+    }
+}
+
+}  // namespace phongfit
