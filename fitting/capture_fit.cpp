@@ -268,6 +268,7 @@ CaptureFit fitCapture(const Capture& capture, const std::vector<CaptureImage>& i
     // fitter's independent recordings, and re-recording changes nothing: one round.
     FitOptions fit = options.fit;
     fit.estimator = Estimator::LeastSquares;
+    fit.scanStart = false;  // startScan below, on a subsample
     const std::vector<Observation>& obs = out.model.observations;
 
     if (!heldOutImages.empty()) {

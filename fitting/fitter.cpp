@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <span>
 #include <thread>
@@ -426,19 +427,21 @@ class RoundSolver {
     };
 
 public:
-    // `warmStart`: start the instrumental-variables solve from the least-squares solution (see
-    // solve).
+    // `firstRound`: scan the exponents (FitOptions::scanStart) and start the
+    // instrumental-variables solve from the least-squares solution (see solve).
     RoundSolver(const std::vector<Observation>& observations, const std::vector<PathSet>& first,
                 const std::vector<PathSet>& second, const std::vector<PhongMaterial>& start,
-                const FitOptions& options, int threads, bool warmStart)
+                const FitOptions& options, int threads, bool firstRound)
         : start_(start),
           options_(options),
           slots_(int(start.size())),
           instrumental_(options.estimator == Estimator::InstrumentalVariables),
-          warmStart_(instrumental_ && warmStart),
+          scan_(firstRound && options.scanStart),
+          warmStart_(instrumental_ && firstRound),
           // Exact sets passed as both recordings: pooling would only double the work.
-          pooled_((instrumental_ && !warmStart_) || &first == &second ? std::vector<PathSet>{}
-                                                                      : poolAll(first, second)),
+          pooled_((instrumental_ && !warmStart_ && !scan_) || &first == &second
+                      ? std::vector<PathSet>{}
+                      : poolAll(first, second)),
           leastSquaresSets_(&first == &second ? &first : &pooled_),
           sets_(instrumental_ ? SetLists{&first, &second} : SetLists{leastSquaresSets_}),
           prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0)),
@@ -461,6 +464,7 @@ public:
         // Where the instruments (or least squares' robust weights) were taken, in natural
         // coordinates; empty while least squares' weights are all 1.
         std::vector<NaturalVector> passPoint;
+        if (scan_) scanExponents(held);
         // Instruments far from the solution (a far start: n off by 10x) give moment equations with
         // spurious roots; least squares, biased but a true minimisation, lands near enough. Without
         // the robust loss: on few samples per pixel most of the highlight looks like outliers.
@@ -649,6 +653,67 @@ private:
             freeCount += P - int(constant.size());
         }
         return freeCount;
+    }
+
+    // FitOptions::scanStart, one slot after the other. For each exponent on the grid, kd and ks
+    // take one Gauss-Newton step from where they are (with n there), then the least-squares cost
+    // is compared. The step is exact where every recorded term has one vertex on the material,
+    // as under direct light: I is then linear in kd and ks; bounds are then imposed by clamping.
+    void scanExponents(const std::vector<HeldParams>& held) {
+        std::vector<double> y(std::size_t(slots_) * P), trial, best;
+        for (int s = 0; s < slots_; ++s)
+            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        std::vector<double> grid;
+        for (double n = 1; n < kMaxExponent; n *= 4) grid.push_back(std::log(n));
+        grid.push_back(std::log(kMaxExponent));
+        for (int s = 0; s < slots_; ++s) {
+            if (held[s].n || !prep_.slotSeen[s]) continue;
+            const std::size_t at = std::size_t(s) * P;
+            std::vector<int> reflectances;  // free kd and ks coordinates of the slot
+            for (int i = 0; i < L::kLogN; ++i)
+                if (!isHeld(held[s], i)) reflectances.push_back(int(at) + i);
+            double bestCost = std::numeric_limits<double>::infinity();
+            // The start competes first, and another exponent must do better by more than
+            // rounding: where the images show no lobe (ks = 0) every exponent fits equally well,
+            // and one whose lobe misses every pixel would leave ks unconstrained.
+            grid.insert(grid.begin(), y[at + L::kLogN]);
+            const double margin = 1e-9 * 3.0 * double(prep_.seeingMaterial) *
+                                  prep_.rmsObserved * prep_.rmsObserved;
+            for (double logN : grid) {
+                trial = y;
+                trial[at + L::kLogN] = logN;
+                if (!reflectances.empty()) {
+                    double squares = 0;
+                    Eigen::VectorXd gradient;
+                    Eigen::MatrixXd gramian;
+                    leastSquaresSums(trial.data(), squares, &gradient, &gramian);
+                    Eigen::MatrixXd h = gramian(reflectances, reflectances);
+                    h.diagonal().array() += 1e-12 * (h.diagonal().maxCoeff() + 1e-300);
+                    const Eigen::VectorXd step = h.ldlt().solve(-gradient(reflectances));
+                    for (std::size_t k = 0; k < reflectances.size(); ++k)
+                        if (std::isfinite(step[Eigen::Index(k)]))
+                            trial[std::size_t(reflectances[k])] += step[Eigen::Index(k)];
+                    clampReflectances(trial.data() + at, held[s]);
+                }
+                double cost = 0;
+                leastSquaresSums(trial.data(), cost, nullptr, nullptr);
+                if (cost < bestCost - margin) bestCost = cost, best = trial;
+            }
+            grid.erase(grid.begin());
+            y = best;
+            toInternal<P>(y.data() + at, held[s], block(s));
+        }
+    }
+
+    // kd, ks >= 0 and kd + ks <= 1 per colour group, by clamping natural coordinates; a held kd
+    // stays and bounds ks instead.
+    static void clampReflectances(double* y, const HeldParams& held) {
+        for (int g = 0; g < L::kGroups; ++g) {
+            double& kd = y[L::diffuse(g)];
+            double& ks = y[L::specular(g)];
+            ks = std::clamp(ks, 0.0, held.kd[g] ? 1.0 - kd : 1.0);
+            if (!held.kd[g]) kd = std::clamp(kd, 0.0, 1.0 - ks);
+        }
     }
 
     Minimized minimizeMoments(const std::vector<HeldParams>& held) {
@@ -1146,6 +1211,7 @@ private:
     const FitOptions& options_;
     int slots_;
     bool instrumental_;
+    bool scan_;
     bool warmStart_;
     std::vector<PathSet> pooled_;  // for least squares
     const std::vector<PathSet>* leastSquaresSets_;

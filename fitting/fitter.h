@@ -77,6 +77,10 @@ struct FitOptions {
     // channels): a pixel whose RGB residual norm exceeds it counts as an outlier.
     double lossScale = 0.1;
     int maxRounds = 6;
+    // Before the first solve, scan each material's exponent over its range (factors of 4) with kd
+    // and ks at their best for each value, and start from the best: a start with n off by 10x or
+    // more can otherwise end in a local minimum. Off for callers that scan themselves (captures).
+    bool scanStart = true;
     // Converged when, between the estimate a round recorded at and the one it solved for, every
     // free kd, ks changed by less than tolerance * max(|value|, 0.01) and log n by less than
     // tolerance, or the parameter moved less than stdTolerance standard errors: with fresh random

@@ -163,7 +163,8 @@ TEST(SceneWriter, ValuesRoundTripExactly) {
     const PhongMaterial m = material(Color3(0.1234567890123456789, 1.0 / 3.0, 1e-7),
                                      Color3(2.0 / 3.0, 0.5, 1e-300), 987654.321);
     writeSceneWithMaterials(in, {}, {{"ball", m}}, out);
-    const PhongMaterial& back = bsdf(loadScene(out), "ball");
+    const Scene fitted = loadScene(out);  // kept alive: `back` refers into it
+    const PhongMaterial& back = bsdf(fitted, "ball");
     EXPECT_TRUE((back.kd == m.kd).all()) << back.kd.transpose();
     EXPECT_TRUE((back.ks == m.ks).all()) << back.ks.transpose();
     EXPECT_EQ(back.n, m.n);
