@@ -17,6 +17,7 @@
 #include "error.h"
 #include "fit_report.h"
 #include "image.h"
+#include "interrupt.h"
 #include "replay.h"
 
 namespace phongfit {
@@ -199,6 +200,8 @@ FitResult runCaptureFit(const CaptureArgs& args) {
     options.fit.loss = parseLoss(args.loss);
     options.fit.grey = args.grey;
     options.fit.threads = args.threads;
+    installInterruptHandler();
+    options.fit.stopRequested = interruptRequested;
     options.fit.verbose = args.verbose;
     if (!(args.minCos >= 0 && args.minCos < 1))
         throw Error(fmt::format("--min-cos {}: must be in [0, 1)", args.minCos));

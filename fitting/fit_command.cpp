@@ -211,6 +211,7 @@ FitResult runFit(const FitArgs& args) {
     options.grey = args.grey;
     options.maxRounds = args.rounds;
     options.threads = args.threads;
+    options.stopRequested = interruptRequested;
     options.verbose = args.verbose;
     if (fs::exists(args.output) && !fs::is_directory(args.output))
         throw Error(fmt::format("-o '{}': exists and is not a directory", args.output));
@@ -272,7 +273,6 @@ FitResult runFit(const FitArgs& args) {
     std::vector<PhongMaterial> fitted;
     for (const MaterialFit& m : result.materials) fitted.push_back(m.material());
     nlohmann::json report = toJson(result, args.materials);
-    report["interrupted"] = interruptRequested();
     report["record_spp"] = args.spp;
     report["seed"] = args.seed;
     for (const View& v : views) {

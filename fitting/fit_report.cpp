@@ -46,6 +46,7 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
     return {{"materials", materialsJson(result.materials, materialIds)},
             {"rmse", result.rmse},
             {"converged", result.converged},
+            {"interrupted", result.interrupted},
             {"rounds", rounds},
             {"time_s", result.timeSeconds},
             {"pixels_used", result.pixelsUsed},

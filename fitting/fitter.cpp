@@ -309,6 +309,18 @@ std::unique_ptr<ceres::LossFunction> makeLoss(const FitOptions& options, double 
     return nullptr;
 }
 
+// Ends a Ceres solve, keeping its last accepted point, once FitOptions::stopRequested says so.
+class StopCallback final : public ceres::IterationCallback {
+public:
+    explicit StopCallback(const std::function<bool()>& stop) : stop_(stop) {}
+    ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+        return stop_ && stop_() ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
+    }
+
+private:
+    const std::function<bool()>& stop_;
+};
+
 // The outcome of one round: the solution with its uncertainty and what the round cost.
 struct RoundOutcome {
     std::vector<MaterialFit> materials;
@@ -497,7 +509,7 @@ public:
                 x_ = instrumentX;
                 analysis = analyse(held);
                 out.naturalStd = naturalStd(analysis.gram, analysis.leastSquaresScores, held);
-            } else if ((instrumental_ || loss_) && pass < kMaxPasses &&
+            } else if ((instrumental_ || loss_) && pass < kMaxPasses && !stopping() &&
                        (passPoint.empty() ||
                         !withinTolerance<P>(passPoint, naturalBlocks(held), noStd, options_))) {
                 // The estimate is consistent whatever the instruments; instruments at the
@@ -732,6 +744,8 @@ private:
         return run(problem, ceres::Solver::Options().initial_trust_region_radius, kMomentTolerance);
     }
 
+    bool stopping() const { return options_.stopRequested && options_.stopRequested(); }
+
     // The natural coordinates slot * P + i of the blocks' slots that are not held.
     std::vector<int> freeIndices(const std::vector<HeldParams>& held,
                                  const std::vector<std::uint32_t>& blockSlots) const {
@@ -783,6 +797,8 @@ private:
         solverOptions.logging_type =
             options_.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
         solverOptions.minimizer_progress_to_stdout = options_.verbose;
+        StopCallback stop(options_.stopRequested);
+        if (options_.stopRequested) solverOptions.callbacks.push_back(&stop);
         ceres::Solver::Summary summary;
         ceres::Solve(solverOptions, &problem, &summary);
         if (options_.verbose) fmt::print(stderr, "{}\n", summary.BriefReport());
@@ -1292,6 +1308,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
+        if (options.stopRequested && options.stopRequested()) {
+            // The round's solves may have been cut short: not a converged estimate.
+            result.interrupted = true;
+            result.converged = false;
+            break;
+        }
         if (result.converged) break;
     }
     result.timeSeconds = secondsSince(begin);

@@ -94,6 +94,10 @@ struct FitOptions {
     int threads = 0;          // 0 = all hardware threads
     bool verbose = false;     // Ceres' progress on stdout and its brief report on stderr
     std::function<void(const FitRound&)> onRound;  // called after each round, e.g. for progress
+    // Polled between solver iterations and rounds (e.g. interruptRequested): when it returns
+    // true, the solve under way stops, its round is finished with the estimate so far, and no
+    // further round starts. The result is then marked `interrupted`.
+    std::function<bool()> stopRequested;
 };
 
 struct FitResult {
@@ -104,6 +108,7 @@ struct FitResult {
     // The parameters stopped moving between rounds or, on exact path sets (the same list passed
     // as both recordings), the solver converged.
     bool converged = false;
+    bool interrupted = false;  // FitOptions::stopRequested cut the fit short
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
     std::size_t pixelsUsed = 0;

@@ -659,6 +659,37 @@ TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
     EXPECT_FALSE(fitMaterials({obs}, record, {start}, options).converged);
 }
 
+TEST(Fitter, StopRequestEndsTheFitAfterTheRoundUnderWayWithItsEstimate) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    bool stop = false;
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
+        stop = stop || recording == 3;  // the signal comes while round 1 records its second set
+        PathSet ps = makePaths(scene);
+        std::mt19937 rng(200 + recording);
+        std::normal_distribution<float> noise(0, 0.1f);
+        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        return ps;
+    };
+    FitOptions options;
+    options.stdTolerance = 0;  // noise alone would keep the rounds going to the last
+    options.maxRounds = 10;
+    options.stopRequested = [&] { return stop; };
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    EXPECT_TRUE(r.interrupted);
+    EXPECT_FALSE(r.converged);
+    ASSERT_EQ(r.rounds.size(), 2u);
+    expectFinite(r);
+    EXPECT_TRUE((r.materials[0].kd == r.rounds[1].materials[0].kd).all()) << "the last round's";
+
+    stop = false;
+    options.stopRequested = [] { return false; };
+    const FitResult full = fitMaterials({obs}, record, {kTruth}, options);
+    EXPECT_FALSE(full.interrupted);
+    EXPECT_EQ(full.rounds.size(), 10u);
+}
+
 TEST(Fitter, InstrumentalVariablesRemoveTheAttenuationOfNoisyPathSets) {
     SphereScene scene = threeLights();
     scene.size = 160;
