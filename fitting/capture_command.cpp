@@ -9,11 +9,11 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "atomic_file.h"
 #include "capture.h"
 #include "capture_fit.h"
+#include "comparison_image.h"
 #include "error.h"
 #include "fit_report.h"
 #include "image.h"
@@ -98,16 +98,11 @@ std::size_t medianView(const HoldoutPrediction& prediction) {
     return order[order.size() / 2];
 }
 
-// One row per material (Phong, then Lambertian-only if fitted); columns: observed | predicted |
-// signed error (red: predicted too bright, blue: too dark), cropped to the mask. Left-out pairs
-// are grey in the last two columns, pixels outside the mask black.
+// One row per material (Phong, then Lambertian-only if fitted), cropped to the mask; left-out
+// pairs are grey, pixels outside the mask black (comparison_image.h).
 cv::Mat comparison(const Capture& capture, const CaptureImage& image, const CaptureModel& model,
                    std::size_t view, const std::vector<PhongMaterial>& rows) {
-    const std::size_t pixels = capture.pixels.size();
     const PathSet& ps = model.paths[view];
-    std::vector<int> entryOf(pixels, -1);
-    for (std::size_t k = 0; k < model.entries[view].size(); ++k)
-        entryOf[model.entries[view][k]] = int(k);
     int x0 = capture.width, y0 = capture.height, x1 = 0, y1 = 0;
     for (std::uint32_t p : capture.pixels) {
         const int x = int(p % capture.width), y = int(p / capture.width);
@@ -116,61 +111,29 @@ cv::Mat comparison(const Capture& capture, const CaptureImage& image, const Capt
     x0 = std::max(0, x0 - kCompareMargin), y0 = std::max(0, y0 - kCompareMargin);
     x1 = std::min(capture.width - 1, x1 + kCompareMargin);
     y1 = std::min(capture.height - 1, y1 + kCompareMargin);
-    const int w = x1 - x0 + 1, h = y1 - y0 + 1;
-
-    std::vector<std::vector<Color3>> predicted(rows.size());
-    std::vector<double> luminance, errors;
-    for (std::size_t i = 0; i < pixels; ++i) {
-        if (image.state[i] == PixelState::Ok) luminance.push_back(image.rgb[i].mean());
-        if (entryOf[i] < 0) continue;
-        for (std::size_t row = 0; row < rows.size(); ++row) {
-            const Color3 c = replayPixel(ps, entryOf[i], &rows[row]);
-            predicted[row].push_back(c);
-            errors.push_back(std::abs((c - image.rgb[i].cast<double>()).mean()));
-        }
+    ComparisonPanels panels;
+    panels.width = x1 - x0 + 1;
+    panels.height = y1 - y0 + 1;
+    panels.whitePercentile = 100;
+    const std::size_t size = std::size_t(panels.width) * std::size_t(panels.height);
+    panels.observed.assign(size, Color3::Zero());
+    panels.state.assign(size, ComparePixel::Outside);
+    panels.predicted.assign(rows.size(), std::vector<Color3>(size, Color3::Zero()));
+    std::vector<std::size_t> at(capture.pixels.size());
+    for (std::size_t i = 0; i < capture.pixels.size(); ++i) {
+        const std::size_t x = capture.pixels[i] % std::size_t(capture.width) - std::size_t(x0);
+        const std::size_t y = capture.pixels[i] / std::size_t(capture.width) - std::size_t(y0);
+        at[i] = y * std::size_t(panels.width) + x;
+        panels.observed[at[i]] = image.rgb[i].cast<double>();
+        panels.state[at[i]] = ComparePixel::LeftOut;
     }
-    // One exposure for all panels (the brightest unclipped observation is white, so highlights
-    // keep their shape), one error scale for all rows (their 99th percentile is full red or blue).
-    // A view has at least one used pair, so `errors` is not empty.
-    const double white = std::max(
-        1e-12, luminance.empty() ? 0.0 : *std::max_element(luminance.begin(), luminance.end()));
-    const auto p99 = errors.begin() + std::ptrdiff_t(errors.size() * 99 / 100);
-    std::nth_element(errors.begin(), p99, errors.end());
-    const double errorScale = std::max(1e-12, *p99);
-    const auto srgb8 = [&](double v) {
-        return cv::saturate_cast<uchar>(255 * linearToSrgb(std::clamp(v / white, 0.0, 1.0)) + 0.5);
-    };
-    const auto colour = [&](const Color3& c) {
-        return cv::Vec3b(srgb8(c[2]), srgb8(c[1]), srgb8(c[0]));
-    };
-    const cv::Vec3b grey(64, 64, 64);
-    cv::Mat out(int(rows.size()) * h, 3 * w, CV_8UC3, cv::Scalar(0, 0, 0));
-    for (std::size_t row = 0; row < rows.size(); ++row) {
-        std::size_t next = 0;
-        for (std::size_t i = 0; i < pixels; ++i) {
-            const int x = int(capture.pixels[i] % capture.width) - x0;
-            const int y = int(capture.pixels[i] / capture.width) - y0 + int(row) * h;
-            const Color3 observed = image.rgb[i].cast<double>();
-            out.at<cv::Vec3b>(y, x) = observed.allFinite() ? colour(observed) : grey;
-            if (entryOf[i] < 0) {
-                out.at<cv::Vec3b>(y, w + x) = out.at<cv::Vec3b>(y, 2 * w + x) = grey;
-                continue;
-            }
-            const Color3& c = predicted[row][next++];
-            out.at<cv::Vec3b>(y, w + x) = colour(c);
-            const double t = std::clamp((c - observed).mean() / errorScale, -1.0, 1.0);
-            const uchar fade = cv::saturate_cast<uchar>(255 * (1 - std::abs(t)));
-            out.at<cv::Vec3b>(y, 2 * w + x) =
-                t > 0 ? cv::Vec3b(fade, fade, 255) : cv::Vec3b(255, fade, fade);
-        }
+    for (std::size_t k = 0; k < model.entries[view].size(); ++k) {
+        const std::size_t p = at[model.entries[view][k]];
+        panels.state[p] = ComparePixel::Compared;
+        for (std::size_t row = 0; row < rows.size(); ++row)
+            panels.predicted[row][p] = replayPixel(ps, k, &rows[row]);
     }
-    return out;
-}
-
-std::string formatColor(const Color3& c, const Color3& s, bool grey) {
-    if (grey) return fmt::format("{:.4g} ± {:.2g}", c[0], s[0]);
-    return fmt::format("({:.4g}, {:.4g}, {:.4g}) ± ({:.2g}, {:.2g}, {:.2g})", c[0], c[1], c[2],
-                       s[0], s[1], s[2]);
+    return comparisonImage(panels);
 }
 
 nlohmann::json holdoutJson(const Capture& capture, const CaptureFit& fit) {

@@ -2,7 +2,6 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -11,6 +10,7 @@
 #include <optional>
 
 #include "atomic_file.h"
+#include "comparison_image.h"
 #include "capture_command.h"
 #include "commands.h"
 #include "defines.h"
@@ -21,7 +21,6 @@
 #include "image.h"
 #include "interrupt.h"
 #include "renderer.h"
-#include "replay.h"
 #include "scene_parser.h"
 #include "scene_writer.h"
 
@@ -153,53 +152,33 @@ View loadView(const std::string& spec, const FitArgs& args, const std::vector<ui
     return v;
 }
 
-// observed | re-rendered (replayed at the fitted parameters) | signed error, blue (under) to red.
-cv::Mat comparison(const View& v, const PathSet& paths, const std::vector<PhongMaterial>& theta) {
-    const int w = v.observation.width, h = v.observation.height;
-    std::vector<float> predicted(3 * std::size_t(w) * h);
-    std::vector<float> observedLum;
-    for (std::size_t p = 0; p < std::size_t(w) * h; ++p) {
-        const Color3 c = replayPixel(paths, p, theta.data());
-        for (int k = 0; k < 3; ++k) predicted[3 * p + k] = float(c[k]);
-        if (v.observation.valid[p]) observedLum.push_back(v.observation.rgb[3 * p + 1]);
+// observed | re-rendered with the fitted parameters | signed error (comparison_image.h). Rendered
+// anew with more paths than a round records, so the middle column shows the model rather than the
+// recording's noise.
+cv::Mat comparison(const View& v, const std::vector<PhongMaterial>& fitted, const FitArgs& args) {
+    Scene scene = v.renderer->scene();
+    for (std::size_t s = 0; s < fitted.size(); ++s) scene.bsdfs[v.fittedBsdfs[s]].params = fitted[s];
+    RenderOptions options;
+    options.spp = args.compareSpp;
+    options.seed = args.seed + 7919;  // independent of every recording
+    options.threads = args.threads;
+    options.maxDepth = v.maxDepth;
+    options.quiet = true;
+    const RenderResult rendered = Renderer(std::move(scene)).render(options);
+    ComparisonPanels panels;
+    panels.width = v.observation.width;
+    panels.height = v.observation.height;
+    const std::size_t pixels = std::size_t(panels.width) * std::size_t(panels.height);
+    panels.predicted.emplace_back(pixels);
+    for (std::size_t p = 0; p < pixels; ++p) {
+        panels.observed.push_back(Color3(v.observation.rgb[3 * p], v.observation.rgb[3 * p + 1],
+                                         v.observation.rgb[3 * p + 2]));
+        panels.state.push_back(v.observation.valid[p] ? ComparePixel::Compared
+                                                      : ComparePixel::LeftOut);
+        panels.predicted[0][p] = Color3(rendered.rgb[3 * p], rendered.rgb[3 * p + 1],
+                                        rendered.rgb[3 * p + 2]);
     }
-    // One exposure for both panels: the observed 99th percentile maps to white.
-    std::nth_element(observedLum.begin(), observedLum.begin() + observedLum.size() * 99 / 100,
-                     observedLum.end());
-    const double white = std::max(1e-12, double(observedLum[observedLum.size() * 99 / 100]));
-    double errorScale = 1e-12;
-    for (std::size_t i = 0; i < predicted.size(); ++i)
-        if (v.observation.valid[i / 3])
-            errorScale = std::max(errorScale, std::abs(double(predicted[i]) - v.observation.rgb[i]));
-    cv::Mat out(h, 3 * w, CV_8UC3, cv::Scalar(0, 0, 0));
-    auto srgb8 = [&](double x) {
-        return cv::saturate_cast<uchar>(255 * linearToSrgb(std::clamp(x / white, 0.0, 1.0)) + 0.5);
-    };
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            const std::size_t p = std::size_t(y) * w + x;
-            for (int k = 0; k < 3; ++k) {
-                out.at<cv::Vec3b>(y, x)[2 - k] = srgb8(v.observation.rgb[3 * p + k]);
-                out.at<cv::Vec3b>(y, w + x)[2 - k] = srgb8(predicted[3 * p + k]);
-            }
-            if (!v.observation.valid[p]) {
-                out.at<cv::Vec3b>(y, 2 * w + x) = cv::Vec3b(64, 64, 64);
-                continue;
-            }
-            double e = 0;
-            for (int k = 0; k < 3; ++k) e += (predicted[3 * p + k] - v.observation.rgb[3 * p + k]) / 3;
-            const double t = std::clamp(e / errorScale, -1.0, 1.0);
-            const uchar fade = cv::saturate_cast<uchar>(255 * (1 - std::abs(t)));
-            out.at<cv::Vec3b>(y, 2 * w + x) =
-                t > 0 ? cv::Vec3b(fade, fade, 255) : cv::Vec3b(255, fade, fade);
-        }
-    return out;
-}
-
-std::string formatColor(const Color3& c, const Color3& s, bool grey) {
-    if (grey) return fmt::format("{:.4g} ± {:.2g}", c[0], s[0]);
-    return fmt::format("({:.4g}, {:.4g}, {:.4g}) ± ({:.2g}, {:.2g}, {:.2g})", c[0], c[1], c[2],
-                       s[0], s[1], s[2]);
+    return comparisonImage(panels);
 }
 
 }  // namespace
@@ -242,7 +221,6 @@ FitResult runFit(const FitArgs& args) {
     }
 
     installInterruptHandler();
-    std::vector<PathSet> lastPaths(views.size());
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
                                     int round) -> PathSet {
         const View& v = views[view];
@@ -253,8 +231,7 @@ FitResult runFit(const FitArgs& args) {
         o.maxDepth = v.maxDepth;
         o.fittedBsdfs = v.fittedBsdfs;
         o.theta0 = theta0;
-        lastPaths[view] = v.renderer->record(o);
-        return lastPaths[view];
+        return v.renderer->record(o);
     };
     options.onRound = [&](const FitRound& r) {
         if (args.quiet) return;
@@ -296,7 +273,7 @@ FitResult runFit(const FitArgs& args) {
         const std::string suffix = k == 0 ? "" : fmt::format("_view{}", k + 1);
         writeSceneWithMaterials(views[k].scenePath, defines, byId,
                                 (dir / ("fitted" + suffix + ".xml")).string());
-        writePng(comparison(views[k], lastPaths[k], fitted),
+        writePng(comparison(views[k], fitted, args),
                  (dir / ("compare" + suffix + ".png")).string());
     }
 
@@ -329,6 +306,10 @@ void addFitCommand(CLI::App& app) {
     cmd->add_option("--mask", args->mask, "PNG mask: pixels that are 0 are left out");
     cmd->add_option("--spp", args->spp, "paths recorded per pixel and round")
         ->check(CLI::Range(1, 4096));
+    cmd->add_option("--compare-spp", args->compareSpp,
+                    "paths per pixel of the re-rendered column of compare.png")
+        ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
     cmd->add_option("--rounds", args->rounds, "at most this many record-and-solve rounds")
         ->check(CLI::Range(1, 100));
     cmd->add_option("--loss", args->loss, "l2, huber or cauchy")
