@@ -15,8 +15,9 @@ const cv::Vec3b kGrey(64, 64, 64);
 
 double percentile(std::vector<double> values, double p) {
     if (values.empty()) return 0;
-    const auto at = values.begin() + std::ptrdiff_t(std::min<double>(
-                                         double(values.size() - 1), p / 100 * double(values.size())));
+    const auto at =
+        values.begin() + std::ptrdiff_t(std::min<double>(double(values.size() - 1),
+                                                         p / 100 * double(values.size())));
     std::nth_element(values.begin(), at, values.end());
     return *at;
 }

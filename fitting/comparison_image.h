@@ -1,9 +1,8 @@
 // compare.png of both fit commands: rows of observed | predicted | signed error.
 #pragma once
 
-#include <opencv2/core.hpp>
-
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -12,8 +11,8 @@
 namespace phongfit {
 
 enum class ComparePixel : std::uint8_t {
-    Outside,   // black in every column (outside a capture's mask)
-    LeftOut,   // observed shown, grey in the other columns (masked, clipped, not fitted)
+    Outside,  // black in every column (outside a capture's mask)
+    LeftOut,  // observed shown, grey in the other columns (masked, clipped, not fitted)
     Compared,
 };
 

@@ -21,8 +21,8 @@
 #include "box_manifold.h"
 #include "error.h"
 #include "identifiability.h"
-#include "material_params.h"
 #include "least_squares_residual.h"
+#include "material_params.h"
 #include "moment_residual.h"
 #include "replay.h"
 #include "replay_jacobian.h"
@@ -53,13 +53,13 @@ constexpr double kReflectanceFloor = 0.01;
 // fit) are bit-identical whatever the thread count.
 constexpr std::size_t kPixelBlock = 256;
 // Solves per round with the instruments (or least squares' robust weights) moved to the last
-// solution (FitOptions::tolerance); a far start needs 3 or 4, the robust losses' weights a few more.
+// solution (FitOptions::tolerance); a far start needs 3 or 4, the robust losses' weights a few
+// more.
 constexpr int kMaxPasses = 8;
-// Instruments are weak when they make a standard error this many times least squares' (which
-// noise in the Jacobians biases but does not blow up): measured 0.4-0.6 times where they work on
-// the Cornell box (weighted by precision, they beat plain least squares), up to 15 times on small
-// images (smoothing blurs a small highlight), 10^4 and more where they fail.
-constexpr double kWeakInstruments = 100;
+// The moment solution is kept unless its precision (RoundSolver::precision) is below this
+// fraction of the cross-product solution's: near-equal ones (exact data, where both are the least-
+// squares solution) must not flip from one to the other on rounding.
+constexpr double kCrossPreference = 0.5;
 // Ceres' relative function tolerance for the moment equations, whose cost is 0 at the root.
 constexpr double kMomentTolerance = 1e-10;
 // Instruments are averaged over this many pixels on each side (RoundSolver::smoothed).
@@ -342,14 +342,19 @@ struct Analysis {
     Eigen::MatrixXd jacobian;  // of the estimating equations: sum of W Z^T J (or the gram)
     Eigen::MatrixXd scores;    // sum of m m^T (uncertainty.h)
     // Sum of l l^T, l = rho' J^T r averaged over the sets: least squares' scores, which with the
-    // gram give standard errors that weak instruments cannot blow up.
+    // gram give the standard errors that decide what is unconstrained.
     Eigen::MatrixXd leastSquaresScores;
+    // With two sets A and B, the cross-product least squares' (RoundSolver::solveInstrumental)
+    // sum of (J_A^T J_B + J_B^T J_A) / 2 and of c c^T, c = (J_A^T r_B + J_B^T r_A) / 2.
+    Eigen::MatrixXd crossGram, crossScores;
     double squares = 0;  // of the mean prediction's error, unweighted, where a material is seen
 
     Analysis& operator+=(const Analysis& other) {
         gram += other.gram;
         jacobian += other.jacobian;
         leastSquaresScores += other.leastSquaresScores;
+        crossGram += other.crossGram;
+        crossScores += other.crossScores;
         squares += other.squares;
         return *this;
     }
@@ -436,6 +441,7 @@ class RoundSolver {
         Eigen::VectorXd moment;                          // P per slot of the pixel
         Eigen::MatrixXd momentJacobian;
         std::vector<Eigen::Index> indices;  // of the pixel's natural coordinates
+        Eigen::VectorXd cross;
     };
 
 public:
@@ -449,11 +455,9 @@ public:
           slots_(int(start.size())),
           instrumental_(options.estimator == Estimator::InstrumentalVariables),
           scan_(firstRound && options.scanStart),
-          warmStart_(instrumental_ && firstRound),
           // Exact sets passed as both recordings: pooling would only double the work.
-          pooled_((instrumental_ && !warmStart_ && !scan_) || &first == &second
-                      ? std::vector<PathSet>{}
-                      : poolAll(first, second)),
+          pooled_((instrumental_ && !scan_) || &first == &second ? std::vector<PathSet>{}
+                                                                 : poolAll(first, second)),
           leastSquaresSets_(&first == &second ? &first : &pooled_),
           sets_(instrumental_ ? SetLists{&first, &second} : SetLists{leastSquaresSets_}),
           prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0)),
@@ -473,75 +477,17 @@ public:
                 if (isHeld(held[s], i)) y[i] = y0[i];
             toInternal<P>(y.data(), held[s], block(s));
         }
-        // Where the instruments (or least squares' robust weights) were taken, in natural
-        // coordinates; empty while least squares' weights are all 1.
-        std::vector<NaturalVector> passPoint;
         if (scan_) scanExponents(held);
-        // Instruments far from the solution (a far start: n off by 10x) give moment equations with
-        // spurious roots; least squares, biased but a true minimisation, lands near enough. Without
-        // the robust loss: on few samples per pixel most of the highlight looks like outliers.
-        if (warmStart_) {
-            const Minimized m = minimizeLeastSquares(held);
-            out.iterations += m.iterations;
-            out.minimizerSeconds += m.seconds;
-        }
         Analysis analysis;
-        std::vector<double> instrumentX;  // where the instruments were taken
-        if (instrumental_) {
-            analysis = analyse(held);
-            adoptInstruments();
-            passPoint = naturalBlocks(held);
-            instrumentX = x_;
-        }
-        const std::vector<std::vector<double>> noStd(slots_, std::vector<double>(P, 0.0));
-        for (int pass = 1;;) {
-            const Minimized m = instrumental_ ? minimizeMoments(held) : minimizeLeastSquares(held);
-            out.iterations += m.iterations;
-            out.minimizerSeconds += m.seconds;
-            out.solverConverged = m.converged;
-            analysis = analyse(held);
-            out.naturalStd = naturalStd(analysis.jacobian, analysis.scores, held);
-            const std::vector<std::vector<double>> leastSquaresStd =
-                naturalStd(analysis.gram, analysis.leastSquaresScores, held);
-            if (instrumental_ && weakInstruments(out.naturalStd, leastSquaresStd)) {
-                // Too few pixels for the samples per pixel: the moment equations have no root
-                // near, and their solution is noise. Stay where the instruments were taken.
-                x_ = instrumentX;
-                analysis = analyse(held);
-                out.naturalStd = naturalStd(analysis.gram, analysis.leastSquaresScores, held);
-            } else if ((instrumental_ || loss_) && pass < kMaxPasses && !stopping() &&
-                       (passPoint.empty() ||
-                        !withinTolerance<P>(passPoint, naturalBlocks(held), noStd, options_))) {
-                // The estimate is consistent whatever the instruments; instruments at the
-                // estimate make it efficient, robust weights at the estimate make it robust, and
-                // moving them there until the estimate stays put (to the tolerance alone: the
-                // standard errors of a solve on instruments far from it can be anything) makes
-                // it independent of where the round started. Least squares with a robust loss is
-                // solved the same way, by iteratively reweighted least squares: its first pass
-                // is plain least squares (from a far start, most of a highlight would look like
-                // outliers), each next one weights pixels by the loss at the last solution, and
-                // the fixed point solves the robust estimating equations.
-                if (instrumental_) {
-                    adoptInstruments();
-                    instrumentX = x_;
-                } else {
-                    leastSquaresWeights_ = weights_[0];
-                }
-                passPoint = naturalBlocks(held);
-                ++pass;
-                continue;
-            }
-            // What the images leave unconstrained is decided at the solution, not on the way.
-            if (hold(findUnconstrained(analysis.gram, 3.0 * double(prep_.seeingMaterial),
-                                       prep_.rmsObserved, heldFlags(held)),
-                     held) ||
-                holdUnseenExponents(naturalStd(analysis.gram, analysis.leastSquaresScores, held),
-                                    held)) {
-                instrumentX = x_;
-                continue;
-            }
-            break;
-        }
+        do {
+            analysis = instrumental_ ? solveInstrumental(held, out) : solveLeastSquares(held, out);
+            // What the images leave unconstrained is decided at the solution, not on the way;
+            // holding a parameter changes the problem, which is solved again.
+        } while (hold(findUnconstrained(analysis.gram, 3.0 * double(prep_.seeingMaterial),
+                                        prep_.rmsObserved, heldFlags(held)),
+                      held) ||
+                 holdUnseenExponents(naturalStd(analysis.gram, analysis.leastSquaresScores, held),
+                                     held));
         for (int s = 0; s < slots_; ++s)
             out.materials.push_back(materialFit(s, held[s], out.naturalStd[s]));
         out.rmse = std::sqrt(analysis.squares / (3.0 * double(prep_.seeingMaterial)));
@@ -551,6 +497,100 @@ public:
     }
 
 private:
+    void account(RoundOutcome& out, const Minimized& m) const {
+        out.iterations += m.iterations;
+        out.minimizerSeconds += m.seconds;
+        out.solverConverged = m.converged;
+    }
+
+    // Least squares, or with a robust loss iteratively reweighted least squares: the first pass
+    // is plain least squares (from a far start most of a highlight would look like outliers),
+    // each next one weights the pixels by the loss at the last solution, until the solution stays
+    // put; the fixed point solves the robust estimating equations.
+    Analysis solveLeastSquares(const std::vector<HeldParams>& held, RoundOutcome& out) {
+        leastSquaresWeights_.clear();
+        std::vector<NaturalVector> weightPoint;  // where the weights were taken; empty: all 1
+        for (int pass = 1;; ++pass) {
+            account(out, minimizeLeastSquares(held));
+            Analysis analysis = analyse(held);
+            out.naturalStd = naturalStd(analysis.jacobian, analysis.scores, held);
+            if (!loss_ || pass >= kMaxPasses || stopping() ||
+                (!weightPoint.empty() &&
+                 withinTolerance<P>(weightPoint, naturalBlocks(held), noStd(), options_)))
+                return analysis;
+            leastSquaresWeights_ = weights_[0];
+            weightPoint = naturalBlocks(held);
+        }
+    }
+
+    // The cross-product least squares first: sum over pixels of r_A . r_B, whose expectation is
+    // the least-squares objective without the recordings' noise (E r_A . r_B = |E r|^2 for
+    // independent sets), so unlike least squares on either set or their mean it is not biased
+    // towards 0, and it is a minimisation: from the scan's basin it finds the minimum, where the
+    // moment equations can have spurious roots. Its stationary point is the moment solution with
+    // each set's own noisy Jacobian as the other's instruments, which costs precision at few
+    // samples per pixel. Then the instrumental-variables solve from there, instruments moved to
+    // each solution until it stays put (the estimate is consistent whatever the instruments;
+    // instruments at the estimate make it efficient and robust weights there robust). Both
+    // estimates are consistent: the round keeps the moment solution unless the cross-product one
+    // is clearly more precise (kCrossPreference) or the moment solutions do not settle. The moments
+    // win on large images at few samples (the Cornell demo at 4 paths per pixel: 2x smaller
+    // errors); on small ones their smoothed instruments blur the highlight and the solutions wander
+    // (the Cornell box at 64 x 64: n from 30 to 142 in one round) while the cross products hold.
+    Analysis solveInstrumental(const std::vector<HeldParams>& held, RoundOutcome& out) {
+        cross_ = true;
+        account(out, minimizeLeastSquares(held));
+        cross_ = false;
+        const std::vector<double> crossX = x_;
+        Analysis analysis = analyse(held);
+        const std::vector<std::vector<double>> crossStd =
+            naturalStd(analysis.crossGram, analysis.crossScores, held);
+        adoptInstruments();
+        std::vector<NaturalVector> instrumentPoint = naturalBlocks(held);
+        for (int pass = 1;; ++pass) {
+            account(out, minimizeMoments(held));
+            analysis = analyse(held);
+            out.naturalStd = naturalStd(analysis.jacobian, analysis.scores, held);
+            const bool settled =
+                withinTolerance<P>(instrumentPoint, naturalBlocks(held), noStd(), options_);
+            if (!settled && pass < kMaxPasses && !stopping()) {
+                adoptInstruments();
+                instrumentPoint = naturalBlocks(held);
+                continue;
+            }
+            if (settled &&
+                precision(out.naturalStd, held) >= kCrossPreference * precision(crossStd, held))
+                return analysis;
+            x_ = crossX;
+            out.naturalStd = crossStd;
+            return analyse(held);
+        }
+    }
+
+    std::vector<std::vector<double>> noStd() const {
+        return std::vector<std::vector<double>>(slots_, std::vector<double>(P, 0.0));
+    }
+
+    // 1 / the sum of the free parameters' relative variances (log n absolute), 0 if one of them
+    // has no finite positive standard error.
+    double precision(const std::vector<std::vector<double>>& stdNatural,
+                     const std::vector<HeldParams>& held) {
+        double sum = 0;
+        for (int s = 0; s < slots_; ++s) {
+            NaturalVector y;
+            toNatural<P>(block(s), held[s], y.data());
+            for (int i = 0; i < P; ++i) {
+                if (isHeld(held[s], i)) continue;
+                const double sd = stdNatural[std::size_t(s)][std::size_t(i)];
+                if (!(sd > 0) || !std::isfinite(sd)) return 0;
+                const double scale =
+                    i == L::kLogN ? 1.0 : std::max(std::abs(y[i]), kReflectanceFloor);
+                sum += sd * sd / (scale * scale);
+            }
+        }
+        return sum > 0 ? 1 / sum : 0;
+    }
+
     static std::vector<PathSet> poolAll(const std::vector<PathSet>& first,
                                         const std::vector<PathSet>& second) {
         std::vector<PathSet> pooled;
@@ -608,16 +648,6 @@ private:
             changed = true;
         }
         return changed;
-    }
-
-    // Whether some parameter's instrumental-variables standard error exceeds kWeakInstruments
-    // times least squares' (or is not finite).
-    static bool weakInstruments(const std::vector<std::vector<double>>& instrumental,
-                                const std::vector<std::vector<double>>& leastSquares) {
-        for (std::size_t s = 0; s < instrumental.size(); ++s)
-            for (int i = 0; i < P; ++i)
-                if (!(instrumental[s][i] <= kWeakInstruments * leastSquares[s][i])) return true;
-        return false;
     }
 
     // n only shapes the lobe: when no group's ks is significantly above 0 (or every ks is held),
@@ -689,8 +719,8 @@ private:
             // rounding: where the images show no lobe (ks = 0) every exponent fits equally well,
             // and one whose lobe misses every pixel would leave ks unconstrained.
             grid.insert(grid.begin(), y[at + L::kLogN]);
-            const double margin = 1e-9 * 3.0 * double(prep_.seeingMaterial) *
-                                  prep_.rmsObserved * prep_.rmsObserved;
+            const double margin =
+                1e-9 * 3.0 * double(prep_.seeingMaterial) * prep_.rmsObserved * prep_.rmsObserved;
             for (double logN : grid) {
                 trial = y;
                 trial[at + L::kLogN] = logN;
@@ -765,9 +795,9 @@ private:
                                  Eigen::MatrixXd* gramian) {
             leastSquaresSums(y, squares, gradient, gramian);
         };
-        problem.AddResidualBlock(new LeastSquaresResidual<P>(sums, blockSlots, held,
-                                                             freeIndices(held, blockSlots)),
-                                 nullptr, blocks);
+        problem.AddResidualBlock(
+            new LeastSquaresResidual<P>(sums, blockSlots, held, freeIndices(held, blockSlots)),
+            nullptr, blocks);
         // A far start's first Gauss-Newton step can jump log n to its bound, where the lobe is
         // invisible and the diffuse part alone fits better than at the start: a dead end (n = 0.3
         // for a true 30 went to 1e6). Start with steps that change log n by about 1 at most.
@@ -805,8 +835,7 @@ private:
         if (!summary.IsSolutionUsable())
             throw Error(fmt::format("the fit failed: {}", summary.message));
         return {summary.num_successful_steps + summary.num_unsuccessful_steps,
-                summary.minimizer_time_in_seconds,
-                summary.termination_type == ceres::CONVERGENCE};
+                summary.minimizer_time_in_seconds, summary.termination_type == ceres::CONVERGENCE};
     }
 
     // L^-1 with L L^T the Gram matrix of the instruments over the free natural coordinates.
@@ -893,6 +922,31 @@ private:
             prep_.seeingMaterial, zero, [&](std::size_t i, NormalSums& sum, Scratch& scratch) {
                 const UsedPixel& u = prep_.pixels[i];
                 const double w = leastSquaresWeights_.empty() ? 1.0 : leastSquaresWeights_[i];
+                if (cross_) {
+                    const Eigen::Vector3d ra = residual(0, u, y, scratch, withJacobian);
+                    const Eigen::Vector3d rb = residual(1, u, y, scratch, withJacobian);
+                    sum.squares += w * ra.dot(rb);
+                    if (!withJacobian) return;
+                    const std::span<const std::uint32_t> slots = pixelSlots(u);
+                    const std::vector<Jacobian>& ja = scratch.jacobians[0];
+                    const std::vector<Jacobian>& jb = scratch.jacobians[1];
+                    for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                        const Eigen::Index row = Eigen::Index(slots[a]) * P;
+                        addPackedGradient<P>(sum.gradient.template segment<P>(row), 0.5 * w, ja[a],
+                                             rb);
+                        addPackedGradient<P>(sum.gradient.template segment<P>(row), 0.5 * w, jb[a],
+                                             ra);
+                        for (std::uint32_t b = 0; b < u.slotCount; ++b) {
+                            addPackedGram<P>(
+                                sum.gramian.template block<P, P>(row, Eigen::Index(slots[b]) * P),
+                                0.5 * w, ja[a], jb[b]);
+                            addPackedGram<P>(
+                                sum.gramian.template block<P, P>(row, Eigen::Index(slots[b]) * P),
+                                0.5 * w, jb[a], ja[b]);
+                        }
+                    }
+                    return;
+                }
                 std::vector<Jacobian>& j = scratch.jacobians[0];
                 const Eigen::Vector3d r = residual((*leastSquaresSets_)[u.view], u, y, scratch,
                                                    withJacobian ? &j : nullptr);
@@ -958,8 +1012,8 @@ private:
             weights_[k].resize(prep_.pixels.size());
         }
         const Eigen::Index size = Eigen::Index(slots_) * P;
-        const Analysis zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size),
-                            Eigen::MatrixXd(), Eigen::MatrixXd::Zero(size, size), 0.0};
+        const Eigen::MatrixXd zeros = Eigen::MatrixXd::Zero(size, size);
+        const Analysis zero{zeros, zeros, Eigen::MatrixXd(), zeros, zeros, zeros, 0.0};
         Analysis result = sumOverPixels(
             prep_.pixels.size(), zero, [&](std::size_t i, Analysis& sum, Scratch& scratch) {
                 const UsedPixel& u = prep_.pixels[i];
@@ -977,7 +1031,8 @@ private:
                     mean += r / sets;
                     for (std::uint32_t a = 0; a < u.slotCount; ++a) {
                         jacobians_[k][u.slotBegin + a] = j[a];
-                        addPackedGradient<P>(l.segment<P>(Eigen::Index(a) * P), rho / sets, j[a], r);
+                        addPackedGradient<P>(l.segment<P>(Eigen::Index(a) * P), rho / sets, j[a],
+                                             r);
                         for (std::uint32_t b = 0; u.seesMaterial && b < u.slotCount; ++b)
                             addPackedGram<P>(sum.gram.block<P, P>(at(a), at(b)), rho / sets, j[a],
                                              j[b]);
@@ -990,6 +1045,29 @@ private:
                         sum.leastSquaresScores.block<P, P>(at(a), at(b)) +=
                             l.segment<P>(Eigen::Index(a) * P) *
                             l.segment<P>(Eigen::Index(b) * P).transpose();
+                if (sets == 2) {
+                    Eigen::VectorXd& c = scratch.cross;
+                    c.setZero(Eigen::Index(u.slotCount) * P);
+                    for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                        const Jacobian& ja = jacobians_[0][u.slotBegin + a];
+                        const Jacobian& jb = jacobians_[1][u.slotBegin + a];
+                        addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, ja,
+                                             residuals_[1][i]);
+                        addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, jb,
+                                             residuals_[0][i]);
+                        for (std::uint32_t b = 0; b < u.slotCount; ++b) {
+                            addPackedGram<P>(sum.crossGram.block<P, P>(at(a), at(b)), 0.5, ja,
+                                             jacobians_[1][u.slotBegin + b]);
+                            addPackedGram<P>(sum.crossGram.block<P, P>(at(a), at(b)), 0.5, jb,
+                                             jacobians_[0][u.slotBegin + b]);
+                        }
+                    }
+                    for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                        for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                            sum.crossScores.block<P, P>(at(a), at(b)) +=
+                                c.segment<P>(Eigen::Index(a) * P) *
+                                c.segment<P>(Eigen::Index(b) * P).transpose();
+                }
                 if (!moments) return;
                 pixelMoment(i, u, scratch.moment, &scratch.momentJacobian);
                 for (std::uint32_t a = 0; a < u.slotCount; ++a)
@@ -1228,7 +1306,6 @@ private:
     int slots_;
     bool instrumental_;
     bool scan_;
-    bool warmStart_;
     std::vector<PathSet> pooled_;  // for least squares
     const std::vector<PathSet>* leastSquaresSets_;
     SetLists sets_;
@@ -1245,6 +1322,7 @@ private:
     std::array<std::vector<Jacobian>, 2> instruments_;
     std::array<std::vector<double>, 2> lossWeights_;
     std::vector<double> leastSquaresWeights_;  // per pixel; empty: all 1
+    bool cross_ = false;
     Eigen::MatrixXd instrumentGram_;
     Eigen::VectorXd constantMoments_;  // g's terms from the pixels that see no material
 };

@@ -59,7 +59,7 @@ public:
         if (!wantJacobian) {
             sums_(y.data(), squares, nullptr, nullptr);
             out.setZero();
-            out[f] = std::sqrt(squares);
+            out[f] = std::sqrt(std::max(squares, 0.0));
             return std::isfinite(squares);
         }
         Eigen::VectorXd gradient;
@@ -68,8 +68,8 @@ public:
         const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gramian(free_, free_));
         const Eigen::VectorXd& d = eigen.eigenvalues();
         // Directions the data do not see (D ~ 0) carry no gradient either: leave them out.
-        const double floor = std::max(d.maxCoeff(), 0.0) * double(f) *
-                             std::numeric_limits<double>::epsilon();
+        const double floor =
+            std::max(d.maxCoeff(), 0.0) * double(f) * std::numeric_limits<double>::epsilon();
         Eigen::MatrixXd natural = Eigen::MatrixXd::Zero(f + 1, Eigen::Index(held_.size()) * P);
         const Eigen::VectorXd projected = eigen.eigenvectors().transpose() * gradient(free_);
         double explained = 0;

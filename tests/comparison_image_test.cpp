@@ -16,8 +16,8 @@ ComparisonPanels fourPixels() {
                        Color3::Constant(0.25)};
     panels.state = {ComparePixel::Outside, ComparePixel::LeftOut, ComparePixel::Compared,
                     ComparePixel::Compared};
-    panels.predicted = {{Color3::Zero(), Color3::Zero(), Color3::Constant(1.5),
-                         Color3::Constant(0.0)}};
+    panels.predicted = {
+        {Color3::Zero(), Color3::Zero(), Color3::Constant(1.5), Color3::Constant(0.0)}};
     panels.whitePercentile = 100;
     return panels;
 }
