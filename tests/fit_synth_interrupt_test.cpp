@@ -18,7 +18,7 @@
 #include <string>
 
 #include "image.h"
-#include "interrupt_process.h"
+#include "subprocess.h"
 
 namespace phongfit {
 namespace {
@@ -74,7 +74,7 @@ TEST_F(FitSynthInterrupt, FitWritesBestParametersSoFarAfterSigint) {
         "--kd",       "0.05",      "--spp",  "256",
         "--rounds",   "100",       "-D",     "width=40",
         "-D",         "height=40", "-o",     path("out")};
-    const auto r = test::runAndSignal(args, {[](const std::string&, const std::string& err) {
+    const auto r = test::runProcess(args, {[](const std::string&, const std::string& err) {
                                                  return err.find("round 1:") != std::string::npos;
                                              },
                                              {SIGINT}});
@@ -117,7 +117,7 @@ TEST_F(FitSynthInterrupt, FitInterruptedInItsFirstRoundStillWritesValidOutputs) 
         "-D",         "width=32", "-D",     "height=32",
         "-o",         path("out")};
     const auto r =
-        test::runAndSignal(args, {test::after(std::chrono::milliseconds(300)), {SIGINT}});
+        test::runProcess(args, {test::after(std::chrono::milliseconds(300)), {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     const auto report = nlohmann::json::parse(std::ifstream(path("out/fit.json")));
     EXPECT_EQ(report["interrupted"], true);
@@ -146,7 +146,7 @@ TEST_F(FitSynthInterrupt, SynthKeepsFinishedSamplesAndResumes) {
                                            "-o",         path("dataset"), "--jobs",
                                            "1",          "--quiet"};
     const fs::path dataset = path("dataset");
-    const auto r = test::runAndSignal(args, {[&](const std::string&, const std::string&) {
+    const auto r = test::runProcess(args, {[&](const std::string&, const std::string&) {
                                                  return !finishedSamples(dataset).empty();
                                              },
                                              {SIGINT}});

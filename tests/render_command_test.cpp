@@ -53,7 +53,7 @@ TEST_F(RenderCommand, SigintWritesAValidPartialImage) {
     const auto r = test::runProcess({PHONGFIT_EXE, "render", kScenes + "/cornell_phong.xml", "-o",
                                      path("c.exr"), "--spp", "100000", "-D", "width=64", "-D",
                                      "height=64", "--quiet"},
-                                    {SIGINT, std::chrono::milliseconds(1500)});
+                                    {test::after(std::chrono::milliseconds(1500)), {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("interrupted: the image holds"), std::string::npos) << r.out;
     const Image image = readImage(path("c.exr"));

@@ -15,7 +15,7 @@
 #include <string>
 
 #include "image.h"
-#include "interrupt_process.h"
+#include "subprocess.h"
 
 namespace phongfit {
 namespace {
@@ -46,7 +46,7 @@ protected:
     // nothing while it runs (stderr is not a terminal): signals go after a delay counted from
     // the installation of its handler, which comes before the scene is even read.
     test::ProcessResult render(int side, const test::SignalPlan& plan) const {
-        return test::runAndSignal(
+        return test::runProcess(
             {PHONGFIT_EXE, "render", kCornell, "-o", path("out.exr"), "--spp", "100000", "-D",
              "width=" + std::to_string(side), "-D", "height=" + std::to_string(side), "--quiet"},
             plan);

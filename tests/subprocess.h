@@ -1,6 +1,8 @@
 // Runs the phongfit executable as a user would, for end-to-end tests: arguments without a shell,
-// stdout and stderr captured, optionally a signal sent once the child has printed something or
-// after a delay.
+// stdout and stderr captured. For kill tests, signals are sent once the child has installed its
+// handler and a condition on its progress holds (text it printed, a file it wrote, time since the
+// handler), so the tests do not depend on the machine's speed (sanitizer builds are several times
+// slower). A watchdog kills the child if it outlives the plan's limit.
 #pragma once
 
 #include <fcntl.h>
@@ -11,6 +13,10 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <fstream>
+#include <functional>
+#include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -18,17 +24,41 @@
 namespace phongfit::test {
 
 struct ProcessResult {
-    int exitCode = -1;    // -1 if killed by a signal
+    int exitCode = -1;  // -1 if killed by a signal
     int signal = 0;
     std::string out, err;
 };
 
-struct SignalAfter {
-    int signal = 0;  // 0: none
-    std::chrono::milliseconds delay{0};
+// Whether the process has a handler for `signal` (the SigCgt mask of /proc/PID/status).
+inline bool catchesSignal(pid_t pid, int signal) {
+    std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+    for (std::string line; std::getline(status, line);)
+        if (line.starts_with("SigCgt:"))
+            return std::stoull(line.substr(7), nullptr, 16) >> (signal - 1) & 1;
+    return false;
+}
+
+// A condition that holds `delay` after it is first asked.
+inline std::function<bool(const std::string&, const std::string&)> after(
+    std::chrono::milliseconds delay) {
+    auto start = std::make_shared<std::optional<std::chrono::steady_clock::time_point>>();
+    return [=](const std::string&, const std::string&) {
+        const auto now = std::chrono::steady_clock::now();
+        if (!*start) *start = now;
+        return now - **start >= delay;
+    };
+}
+
+struct SignalPlan {
+    // Polled every 10 ms with the output so far, once the child catches signals[0] (at once for
+    // SIGKILL); the signals go when it returns true.
+    std::function<bool(const std::string& out, const std::string& err)> when;
+    std::vector<int> signals;  // sent in turn, `gap` apart
+    std::chrono::milliseconds gap{50};
+    std::chrono::milliseconds limit{std::chrono::minutes(5)};  // with signals to send
 };
 
-inline ProcessResult runProcess(const std::vector<std::string>& args, SignalAfter send = {}) {
+inline ProcessResult runProcess(const std::vector<std::string>& args, const SignalPlan& plan = {}) {
     int outPipe[2], errPipe[2];
     if (pipe(outPipe) != 0 || pipe(errPipe) != 0) return {};
     posix_spawn_file_actions_t actions;
@@ -53,13 +83,24 @@ inline ProcessResult runProcess(const std::vector<std::string>& args, SignalAfte
         return result;
     }
     const auto start = std::chrono::steady_clock::now();
-    bool signalled = send.signal == 0;
+    std::size_t sent = 0;
+    std::chrono::steady_clock::time_point lastSent;
+    bool triggered = false, killed = false;
     pollfd fds[2] = {{outPipe[0], POLLIN, 0}, {errPipe[0], POLLIN, 0}};
     int open = 2;
     while (open > 0) {
-        if (!signalled && std::chrono::steady_clock::now() - start >= send.delay) {
-            kill(pid, send.signal);
-            signalled = true;
+        const auto now = std::chrono::steady_clock::now();
+        if (!triggered && !plan.signals.empty() &&
+            (plan.signals[0] == SIGKILL || catchesSignal(pid, plan.signals[0])) &&
+            plan.when(result.out, result.err))
+            triggered = true;
+        if (triggered && sent < plan.signals.size() && (sent == 0 || now - lastSent >= plan.gap)) {
+            kill(pid, plan.signals[sent++]);
+            lastSent = now;
+        }
+        if (!killed && !plan.signals.empty() && now - start > plan.limit) {
+            kill(pid, SIGKILL);
+            killed = true;
         }
         if (poll(fds, 2, 10) < 0) break;
         for (int i = 0; i < 2; ++i) {

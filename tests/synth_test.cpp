@@ -90,7 +90,7 @@ protected:
     }
     static test::ProcessResult synth(const std::string& config, const fs::path& out,
                                      std::vector<std::string> extra = {},
-                                     test::SignalAfter signal = {}) {
+                                     const test::SignalPlan& signal = {}) {
         std::vector<std::string> args = {PHONGFIT_EXE, "synth",      config,
                                          "-o",         out.string(), "--quiet"};
         args.insert(args.end(), extra.begin(), extra.end());
@@ -277,7 +277,8 @@ TEST_F(Synth, ResumesAfterSigintWithTheSameFilesAsAnUninterruptedRun) {
     // was split).
     const auto cut =
         synth(file, path("resumed"), {"--jobs", "2"},
-              {SIGINT, std::chrono::duration_cast<std::chrono::milliseconds>(duration / 2)});
+              {test::after(std::chrono::duration_cast<std::chrono::milliseconds>(duration / 2)),
+               {SIGINT}});
     EXPECT_NE(cut.exitCode, 0);
     const int done = completeSamples(path("resumed"));
     EXPECT_LT(done, 12);
