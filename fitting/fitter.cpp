@@ -456,8 +456,7 @@ public:
           instrumental_(options.estimator == Estimator::InstrumentalVariables),
           scan_(firstRound && options.scanStart),
           // Exact sets passed as both recordings: pooling would only double the work.
-          pooled_((instrumental_ && !scan_) || &first == &second ? std::vector<PathSet>{}
-                                                                 : poolAll(first, second)),
+          pooled_(&first == &second ? std::vector<PathSet>{} : poolAll(first, second)),
           leastSquaresSets_(&first == &second ? &first : &pooled_),
           sets_(instrumental_ ? SetLists{&first, &second} : SetLists{leastSquaresSets_}),
           prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0)),
@@ -538,13 +537,29 @@ private:
     // errors); on small ones their smoothed instruments blur the highlight and the solutions wander
     // (the Cornell box at 64 x 64: n from 30 to 142 in one round) while the cross products hold.
     Analysis solveInstrumental(const std::vector<HeldParams>& held, RoundOutcome& out) {
+        const std::vector<double> before = x_;
         cross_ = true;
         account(out, minimizeLeastSquares(held));
+        std::vector<double> y(std::size_t(slots_) * P);
+        for (int s = 0; s < slots_; ++s)
+            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        double crossSum = 0;
+        leastSquaresSums(y.data(), crossSum, nullptr, nullptr);
         cross_ = false;
-        const std::vector<double> crossX = x_;
+        // Where the two sets' noise outweighs the model's error (a thin crescent of partly
+        // covered pixels at 4 paths) the sum of cross products can be driven below 0: no longer
+        // an objective, its minimum is noise (kd 0.95 for a true 0.31 was seen). Least squares on
+        // the pooled sets is the anchor then: biased towards 0 at few samples, but bounded.
+        const bool cross = crossSum > 0;
+        if (!cross) {
+            x_ = before;
+            account(out, minimizeLeastSquares(held));
+        }
+        const std::vector<double> anchorX = x_;
         Analysis analysis = analyse(held);
-        const std::vector<std::vector<double>> crossStd =
-            naturalStd(analysis.crossGram, analysis.crossScores, held);
+        const std::vector<std::vector<double>> anchorStd =
+            cross ? naturalStd(analysis.crossGram, analysis.crossScores, held)
+                  : naturalStd(analysis.gram, analysis.leastSquaresScores, held);
         adoptInstruments();
         std::vector<NaturalVector> instrumentPoint = naturalBlocks(held);
         for (int pass = 1;; ++pass) {
@@ -559,10 +574,10 @@ private:
                 continue;
             }
             if (settled &&
-                precision(out.naturalStd, held) >= kCrossPreference * precision(crossStd, held))
+                precision(out.naturalStd, held) >= kCrossPreference * precision(anchorStd, held))
                 return analysis;
-            x_ = crossX;
-            out.naturalStd = crossStd;
+            x_ = anchorX;
+            out.naturalStd = anchorStd;
             return analyse(held);
         }
     }
