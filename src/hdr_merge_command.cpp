@@ -30,6 +30,7 @@ cv::Mat readExposure(const std::string& path) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
         throw Error(fmt::format("cannot read image '{}': no such file", path));
+    requireLdrContent(path, "image");
     cv::Mat mat;
     try {
         mat = cv::imread(path, cv::IMREAD_UNCHANGED);

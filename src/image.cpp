@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <string_view>
 
 #include "atomic_file.h"
 #include "error.h"
@@ -138,7 +139,8 @@ void decodeFloatPixels(const cv::Mat& mat, Image& image) {
     }
 }
 
-cv::Mat readWithOpenCv(const std::string& path, int flags, const char* what) {
+cv::Mat readWithOpenCv(const std::string& path, int flags, const char* what, bool pngOnly) {
+    requireLdrContent(path, what, pngOnly);
     cv::Mat mat;
     try {
         mat = cv::imread(path, flags);
@@ -154,7 +156,8 @@ cv::Mat readWithOpenCv(const std::string& path, int flags, const char* what) {
 Image readLdr(const std::string& path, const ReadOptions& options) {
     // ANYDEPTH keeps 16-bit values, ANYCOLOR keeps grey as grey; EXIF orientation is applied, so
     // the pixels are oriented as viewers show them.
-    const cv::Mat mat = readWithOpenCv(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR, "image");
+    const cv::Mat mat =
+        readWithOpenCv(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR, "image", false);
     requireImageSize(path, mat.cols, mat.rows);
     Image image(mat.cols, mat.rows);
     switch (mat.depth()) {
@@ -202,6 +205,29 @@ void writeBytes(const std::filesystem::path& path, const std::vector<uchar>& byt
 
 }  // namespace
 
+void requireLdrContent(const std::string& path, const char* what, bool pngOnly) {
+    char head[8] = {};
+    std::ifstream in(path, std::ios::binary);
+    in.read(head, sizeof head);
+    const std::string_view bytes(head, std::size_t(in.gcount()));
+    const auto startsWith = [&](std::string_view magic) {
+        return bytes.substr(0, magic.size()) == magic;
+    };
+    using namespace std::string_view_literals;
+    const bool png = startsWith("\x89PNG\r\n\x1a\n"sv);
+    const bool jpeg = startsWith("\xff\xd8\xff"sv);
+    const bool tiff = startsWith("II\x2a\x00"sv) || startsWith("MM\x00\x2a"sv) ||
+                      startsWith("II\x2b\x00"sv) || startsWith("MM\x00\x2b"sv);  // BigTIFF
+    if (pngOnly && !png)
+        throw Error(fmt::format(
+            "cannot read {} '{}': not a valid image file (allowed are 8- or 16-bit PNGs)", what,
+            path));
+    if (!png && !jpeg && !tiff)
+        throw Error(fmt::format(
+            "cannot read {} '{}': not a valid image file (allowed: PNG, JPEG or TIFF content)",
+            what, path));
+}
+
 Image::Image(int width, int height)
     : width(width), height(height), rgb(3 * pixelCount(), 0.0f), clipped(pixelCount(), 0) {}
 
@@ -231,7 +257,7 @@ std::vector<std::uint8_t> readMask(const std::string& path, int width, int heigh
     if (lowercaseExtension(path) != ".png")
         throw Error(fmt::format("cannot read mask '{}': masks must be PNG files (lossless)", path));
     requireReadableFile(path, "mask");
-    const cv::Mat mat = readWithOpenCv(path, cv::IMREAD_UNCHANGED, "mask");
+    const cv::Mat mat = readWithOpenCv(path, cv::IMREAD_UNCHANGED, "mask", true);
     if (mat.depth() != CV_8U && mat.depth() != CV_16U)
         throw Error(fmt::format("cannot read mask '{}': allowed are 8- or 16-bit PNGs", path));
     if (mat.cols != width || mat.rows != height)

@@ -1,0 +1,94 @@
+// Inputs found by the fuzzers of fuzz/ (scripts/fuzz.sh) that crashed phongfit, kept as regular
+// cases once fixed. Each case names the target that found it.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "error.h"
+#include "image.h"
+#include "subprocess.h"
+#include "temp_dir.h"
+
+namespace phongfit {
+namespace {
+
+template <typename F>
+std::string errorOf(F&& f) {
+    try {
+        f();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "(no phongfit::Error)";
+}
+
+// png_fuzz: a file named .png holding a broken PNG header, and "DICM" at byte 128. OpenCV picks
+// its decoder by content, chose GDCM (DICOM), and GDCM's reader failed an assertion: the process
+// aborted. Now only PNG, JPEG and TIFF content reaches OpenCV (only PNG for masks).
+const std::string kDicomNamedPng = [] {
+    const unsigned char bytes[] = {
+        0xff, 0x4f, 0x89, 0x50, 0x4e, 0x47, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00, 0x00, 0x03,
+        0x00, 0x00, 0x00, 0x02, 0x10, 0x02, 0x00, 0x00, 0x00, 0x42, 0x86, 0x2d, 0x0e, 0x00, 0x00,
+        0x00, 0x1f, 0xff, 0x51, 0x22, 0x49, 0x44, 0x54, 0x41, 0x60, 0x60, 0x9c, 0x78, 0x63, 0x60,
+        0x7e, 0xc1, 0x7e, 0x81, 0x7b, 0x07, 0xff, 0x5d, 0xe1, 0x0e, 0xf1, 0x02, 0xe9, 0x08, 0x79,
+        0x07, 0x86, 0xff, 0x18, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52,
+        0x00, 0x00, 0x00, 0x07, 0x00, 0x00, 0x00, 0x02, 0x10, 0x02, 0x00, 0x00, 0x00, 0x00, 0x42,
+        0x86, 0x2d, 0x0e, 0x00, 0x00, 0x00, 0x1f, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0x60,
+        0xe7, 0xe7, 0xe7, 0x00, 0x00, 0x60, 0x60, 0x7e, 0xc1, 0x02, 0x00, 0x00, 0x00, 0x42, 0x86,
+        0x2d, 0x0e, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x44, 0x49, 0x43, 0x4d, 0x41};
+    return std::string(reinterpret_cast<const char*>(bytes), sizeof bytes);
+}();
+
+TEST(PngFuzz, DicomContentNamedPngIsAnErrorNotAnAbort) {
+    const test::TempDir dir("fuzz_regression");
+    const std::string path = dir.write("dicm.png", kDicomNamedPng).string();
+    const std::string image = errorOf([&] { readImage(path); });
+    EXPECT_NE(image.find("cannot read image '" + path + "': not a valid image file"),
+              std::string::npos)
+        << image;
+    EXPECT_NE(image.find("PNG, JPEG or TIFF"), std::string::npos) << image;
+    const std::string mask = errorOf([&] { readMask(path, 3, 2); });
+    EXPECT_NE(mask.find("cannot read mask '" + path + "'"), std::string::npos) << mask;
+    EXPECT_NE(mask.find("allowed are 8- or 16-bit PNGs"), std::string::npos) << mask;
+}
+
+// The same file given to hdr-merge, which reads its exposures with OpenCV too: one line, exit 1.
+TEST(PngFuzz, DicomContentIsRefusedByHdrMerge) {
+    const test::TempDir dir("fuzz_regression");
+    const std::string good = dir.at("good.png");
+    ASSERT_TRUE(cv::imwrite(good, cv::Mat(2, 3, CV_8UC3, cv::Scalar(10, 20, 30))));
+    const std::string bad = dir.write("dicm.png", kDicomNamedPng).string();
+    const test::ProcessResult r = test::runProcess(
+        {PHONGFIT_EXE, "hdr-merge", good, bad, "--times", "1,2", "-o", dir.at("merged.exr")});
+    EXPECT_EQ(r.signal, 0) << r.err;
+    EXPECT_EQ(r.exitCode, 1) << r.err;
+    EXPECT_NE(r.err.find("'" + bad + "': not a valid image file"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir.at("merged.exr")));
+}
+
+// The check that keeps other decoders away must still let every format readImage promises in,
+// whatever the name says (OpenCV decodes by content): PNG, JPEG and TIFF.
+TEST(PngFuzz, PngJpegAndTiffContentAreStillRead) {
+    const test::TempDir dir("fuzz_regression");
+    const cv::Mat grey(2, 3, CV_8UC3, cv::Scalar(128, 128, 128));
+    for (const std::string name : {"a.png", "a.jpg", "a.tiff"}) {
+        ASSERT_TRUE(cv::imwrite(dir.at(name), grey)) << name;
+        const Image image = readImage(dir.at(name));
+        EXPECT_EQ(image.width, 3) << name;
+        EXPECT_EQ(image.height, 2) << name;
+    }
+    // A PNG named .jpg is still a PNG to OpenCV; a TIFF named .png is no mask.
+    std::filesystem::copy_file(dir.at("a.png"), dir.at("png.jpg"));
+    EXPECT_EQ(readImage(dir.at("png.jpg")).width, 3);
+    std::filesystem::copy_file(dir.at("a.tiff"), dir.at("tiff.png"));
+    EXPECT_NE(
+        errorOf([&] { readMask(dir.at("tiff.png"), 3, 2); }).find("allowed are 8- or 16-bit PNGs"),
+        std::string::npos);
+    EXPECT_EQ(readMask(dir.at("a.png"), 3, 2).size(), 6u);
+}
+
+}  // namespace
+}  // namespace phongfit
