@@ -18,10 +18,12 @@
 // few samples make a single pixel's Jacobian as noisy as its value), and W_B the robust loss'
 // weight over the pixel's residual variance, estimated from the two sets at its neighbours. B's
 // noise is independent of A's, so E g(theta_true) = 0 whatever the spp: the estimate is
-// consistent in the number of pixels. Per round: least squares first (round 0 only: a far start
-// gives instruments with spurious roots), then the instrument point moves to the solution until
-// the solution stays put. Where the instruments are too weak (few pixels for the samples: the
-// standard errors blow up), the round keeps the instrument point and least squares' errors.
+// consistent in the number of pixels. Per round: round 0 first scans the exponents
+// (FitOptions::scanStart); then the round minimises sum r_A . r_B, whose expectation is the
+// noise-free least-squares objective (pooled least squares if that sum goes negative), and from
+// there solves g = 0, moving the instrument point to the solution until it stays put. The round
+// keeps the moment solution unless it does not settle or is clearly less precise than the cross-
+// product one (small images, where smoothing blurs the highlight); see RoundSolver.
 #pragma once
 
 #include <cstddef>
