@@ -183,18 +183,18 @@ SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options) {
 
     SynthSummary summary;
     summary.total = config.totalSamples();
-    std::vector<int> todo;
+    std::vector<int> pending;
     for (int i = 0; i < summary.total; ++i) {
         if (fs::exists(dir / sampleName(i, summary.total) / "truth.json"))
             ++summary.alreadyComplete;
         else
-            todo.push_back(i);
+            pending.push_back(i);
     }
 
     installInterruptHandler();
-    const int jobs = std::clamp(options.jobs, 1, std::max(1, int(todo.size())));
+    const int jobs = std::clamp(options.jobs, 1, std::max(1, int(pending.size())));
     const int threads = std::max(1, int(std::thread::hardware_concurrency()) / jobs);
-    Progress progress("synth", todo.size(), "samples", options.quiet);
+    Progress progress("synth", pending.size(), "samples", options.quiet);
     std::atomic<std::size_t> next{0};
     std::atomic<int> rendered{0};
     std::atomic<bool> failed{false};
@@ -203,9 +203,9 @@ SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options) {
     auto worker = [&] {
         while (!failed && !interruptRequested()) {
             const std::size_t k = next++;
-            if (k >= todo.size()) return;
+            if (k >= pending.size()) return;
             try {
-                if (makeSample(config, drawSample(config, todo[k]), dir, threads)) {
+                if (makeSample(config, drawSample(config, pending[k]), dir, threads)) {
                     ++rendered;
                     progress.advance();
                 }
