@@ -18,6 +18,7 @@
 
 #include "capture_fit.h"
 #include "error.h"
+#include "error_of.h"
 #include "image.h"
 #include "phong_brdf.h"
 #include "subprocess.h"
@@ -108,15 +109,7 @@ std::vector<int> range(int first, int last, int step = 1) {
     return v;
 }
 
-template <typename F>
-std::string errorOf(F&& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
+using test::errorOf;
 
 class CaptureTest : public ::testing::Test {
 protected:

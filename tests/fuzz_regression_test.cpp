@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "error.h"
+#include "error_of.h"
 #include "image.h"
 #include "subprocess.h"
 #include "temp_dir.h"
@@ -15,15 +16,7 @@
 namespace phongfit {
 namespace {
 
-template <typename F>
-std::string errorOf(F&& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "(no phongfit::Error)";
-}
+using test::errorOf;
 
 // png_fuzz: a file named .png holding a broken PNG header, and "DICM" at byte 128. OpenCV picks
 // its decoder by content, chose GDCM (DICOM), and GDCM's reader failed an assertion: the process
