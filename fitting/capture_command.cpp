@@ -301,6 +301,9 @@ bool runCaptureFitIfGiven(const CLI::App& fit, const CaptureArgs& capture, const
         reject({"--lights", "--holdout", "--min-cos"}, "applies to --capture, not to --view");
         return false;
     }
+    reject({"--fit-exposure"},
+           "does not apply to --capture: its images are divided by calibrated light "
+           "intensities and lit directly only, so an exposure cannot be told from kd and ks");
     reject({"--material", "--spp", "--rounds", "--kd", "--ks", "--n", "-D", "--seed",
             "--ignore-nonfinite"},
            "applies to scene fits (--view), not to --capture");

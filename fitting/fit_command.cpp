@@ -155,7 +155,8 @@ View loadView(const std::string& spec, const FitArgs& args, const std::vector<ui
 // observed | re-rendered with the fitted parameters | signed error (comparison_image.h). Rendered
 // anew with more paths than a round records, so the middle column shows the model rather than the
 // recording's noise.
-cv::Mat comparison(const View& v, const std::vector<PhongMaterial>& fitted, const FitArgs& args) {
+cv::Mat comparison(const View& v, const std::vector<PhongMaterial>& fitted, double exposure,
+                   const FitArgs& args) {
     Scene scene = v.renderer->scene();
     for (std::size_t s = 0; s < fitted.size(); ++s) scene.bsdfs[v.fittedBsdfs[s]].params = fitted[s];
     RenderOptions options;
@@ -175,8 +176,8 @@ cv::Mat comparison(const View& v, const std::vector<PhongMaterial>& fitted, cons
                                          v.observation.rgb[3 * p + 2]));
         panels.state.push_back(v.observation.valid[p] ? ComparePixel::Compared
                                                       : ComparePixel::LeftOut);
-        panels.predicted[0][p] = Color3(rendered.rgb[3 * p], rendered.rgb[3 * p + 1],
-                                        rendered.rgb[3 * p + 2]);
+        panels.predicted[0][p] = exposure * Color3(rendered.rgb[3 * p], rendered.rgb[3 * p + 1],
+                                                   rendered.rgb[3 * p + 2]);
     }
     return comparisonImage(panels);
 }
@@ -188,6 +189,7 @@ FitResult runFit(const FitArgs& args) {
     FitOptions options;
     options.loss = parseLoss(args.loss);
     options.grey = args.grey;
+    options.fitExposure = args.fitExposure;
     options.maxRounds = args.rounds;
     options.threads = args.threads;
     options.stopRequested = interruptRequested;
@@ -240,8 +242,12 @@ FitResult runFit(const FitArgs& args) {
             params += fmt::format("  {}: kd {:.4g} ks {:.4g} n {:.4g}", args.materials[s],
                                   r.materials[s].kd.mean(), r.materials[s].ks.mean(),
                                   r.materials[s].n);
-        fmt::print(stderr, "round {}: rmse {:.5g}, {} iterations, {:.2f} s{}\n", r.round + 1,
-                   r.rmse, r.iterations, r.timeSeconds, params);
+        if (args.fitExposure) params += fmt::format("  exposure {:.4g}", r.exposure.value);
+        fmt::print(stderr,
+                   "round {}: rmse {:.5g}, {} iterations of {:.3f} s, {:.2f} s, paths {:.1f} MB, "
+                   "peak {:.0f} MB{}\n",
+                   r.round + 1, r.rmse, r.iterations, r.secondsPerIteration, r.timeSeconds,
+                   r.recordedBytes / 1e6, r.peakMemoryBytes / 1e6, params);
     };
     std::vector<Observation> observations;
     for (const View& v : views) observations.push_back(v.observation);
@@ -273,7 +279,7 @@ FitResult runFit(const FitArgs& args) {
         const std::string suffix = k == 0 ? "" : fmt::format("_view{}", k + 1);
         writeSceneWithMaterials(views[k].scenePath, defines, byId,
                                 (dir / ("fitted" + suffix + ".xml")).string());
-        writePng(comparison(views[k], fitted, args),
+        writePng(comparison(views[k], fitted, result.exposure ? result.exposure->value : 1.0, args),
                  (dir / ("compare" + suffix + ".png")).string());
     }
 
@@ -287,6 +293,13 @@ FitResult runFit(const FitArgs& args) {
                        : fmt::format("  (unconstrained, held at start: {})",
                                      fmt::join(m.unconstrained, ", ")));
     }
+    if (result.exposure)
+        fmt::print("exposure = {:.5g} ± {:.2g}{}\n", result.exposure->value, result.exposure->std,
+                   result.exposure->unconstrained
+                       ? "  (unconstrained: the images cannot tell it from the scale of kd and "
+                         "ks; held where the start materials match their brightness, or as far "
+                         "above as kd + ks <= 1 needs)"
+                       : "");
     fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
                result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
                result.converged ? " (converged)" : " (not converged)", result.timeSeconds,
@@ -315,6 +328,8 @@ void addFitCommand(CLI::App& app) {
     cmd->add_option("--loss", args->loss, "l2, huber or cauchy")
         ->check(CLI::IsMember({"l2", "huber", "cauchy"}));
     cmd->add_flag("--grey", args->grey, "one kd and one ks for all channels");
+    cmd->add_flag("--fit-exposure", args->fitExposure,
+                  "also fit an unknown global scale of the images (observed = s * rendered)");
     cmd->add_option("--kd", args->kd, "start value, R,G,B or one number (default: the scene's)");
     cmd->add_option("--ks", args->ks, "start value, R,G,B or one number (default: the scene's)");
     cmd->add_option("--n", args->n, "start value of the exponent (default: the scene's)");

@@ -20,6 +20,7 @@ struct FitArgs {
     int rounds = 6;
     std::string loss = "l2";
     bool grey = false;
+    bool fitExposure = false;
     std::optional<double> gamma;
     bool srgb = false, linear = false;
     std::optional<double> saturation;

@@ -31,6 +31,10 @@ nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
     return out;
 }
 
+nlohmann::json exposureJson(const ExposureFit& e) {
+    return {{"value", e.value}, {"std", e.std}, {"unconstrained", e.unconstrained}};
+}
+
 }  // namespace
 
 nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& materialIds) {
@@ -42,8 +46,13 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
                           {"rmse", r.rmse},
                           {"iterations", r.iterations},
                           {"time_per_iteration_s", r.secondsPerIteration},
+                          {"recorded_bytes", r.recordedBytes},
+                          {"peak_memory_bytes", r.peakMemoryBytes},
                           {"materials", materialsJson(r.materials, materialIds)}});
-    return {{"materials", materialsJson(result.materials, materialIds)},
+    if (result.exposure)
+        for (std::size_t k = 0; k < result.rounds.size(); ++k)
+            rounds[k]["exposure"] = exposureJson(result.rounds[k].exposure);
+    nlohmann::json out = {{"materials", materialsJson(result.materials, materialIds)},
             {"rmse", result.rmse},
             {"converged", result.converged},
             {"interrupted", result.interrupted},
@@ -51,6 +60,8 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
             {"time_s", result.timeSeconds},
             {"pixels_used", result.pixelsUsed},
             {"pixels_left_out", result.pixelsLeftOut}};
+    if (result.exposure) out["exposure"] = exposureJson(*result.exposure);
+    return out;
 }
 
 void writeFitReport(const std::filesystem::path& path, const FitResult& result,

@@ -13,7 +13,9 @@ namespace phongfit {
 
 // {"materials": {"<id>": {"kd", "ks", "n", "kd_std", "ks_std", "n_std", "unconstrained"}},
 //  "rmse", "converged", "rounds": [{"round", "time_s", "record_time_s", "rmse", "iterations",
-//  "time_per_iteration_s", "materials"}], "time_s", "pixels_used", "pixels_left_out": {reason: n}}.
+//  "time_per_iteration_s", "recorded_bytes", "peak_memory_bytes", "materials"}], "time_s",
+//  "pixels_used", "pixels_left_out": {reason: n}}, with FitOptions::fitExposure also "exposure":
+//  {"value", "std", "unconstrained"} at the top and in each round.
 // `materialIds` names the slots in order; throws Error if the counts differ.
 nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& materialIds);
 

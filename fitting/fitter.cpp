@@ -1,6 +1,7 @@
 #include "fitter.h"
 
 #include <ceres/ceres.h>
+#include <sys/resource.h>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -71,6 +72,22 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 
 bool finite(const Color<float>& c) { return c.allFinite(); }
 
+// What a round's recordings hold, in bytes.
+std::size_t recordedBytes(const std::vector<PathSet>& sets) {
+    std::size_t bytes = 0;
+    for (const PathSet& p : sets)
+        bytes += p.terms.size() * sizeof(PathTerm) + p.vertices.size() * sizeof(PathVertex) +
+                 p.background.size() * sizeof(Color<float>) +
+                 p.pixelStart.size() * sizeof(std::uint32_t);
+    return bytes;
+}
+
+std::size_t peakResidentBytes() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return std::size_t(usage.ru_maxrss) * 1024;  // kilobytes on Linux
+}
+
 // A pixel that enters the fit: observed, finite, and seen through a fitted material, or next to
 // one that is (prepare).
 struct UsedPixel {
@@ -79,7 +96,9 @@ struct UsedPixel {
     std::uint32_t slotBegin, slotCount;
     Color3 observed;
     double weight;
-    bool seesMaterial;  // its own paths (in either set) have a vertex on a fitted material
+    // Its own paths (in either set) have a vertex on a fitted material, or with a fitted exposure
+    // any light: its residual depends on the parameters.
+    bool seesMaterial;
 };
 
 struct Prepared {
@@ -161,12 +180,14 @@ void checkObservation(const Observation& obs, int view) {
 using SetLists = std::vector<const std::vector<PathSet>*>;
 
 // `radius`: a pixel enters when a fitted material is seen through a pixel at most this far from it
-// in either set (RoundSolver::smoothed). Selecting by the sets must not select A's residuals by A's
+// in either set (RoundSolver::smoothed). `exposureSlot` (-1 if none): the slot of the fitted
+// exposure, which every pixel with light in either set also sees (its background alone constrains
+// the exposure). Selecting by the sets must not select A's residuals by A's
 // own noise: a pixel where only B sees the material has an instrument from B and must enter
 // whatever A holds, or A's residuals would be kept only where A hit the material, which biases
 // them.
 Prepared prepare(const std::vector<Observation>& observations, const SetLists& sets, int slots,
-                 int radius) {
+                 int radius, int exposureSlot) {
     Prepared prep;
     prep.slotSeen.assign(slots, false);
     std::size_t masked = 0, nonFinite = 0, noMaterial = 0;
@@ -190,10 +211,12 @@ Prepared prepare(const std::vector<Observation>& observations, const SetLists& s
                 continue;
             }
             bool ok = finite(Color<float>(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]));
+            bool lit = false;
             used.clear();
             for (const std::vector<PathSet>* set : sets) {
                 const PathSet& ps = (*set)[view];
                 ok = ok && finite(ps.background[p]);
+                lit = lit || (ps.background[p] != 0.0f).any() || ps.pixelStart[p + 1] > ps.pixelStart[p];
                 for (std::uint32_t t = ps.pixelStart[p]; ok && t < ps.pixelStart[p + 1]; ++t) {
                     const PathTerm& term = ps.terms[t];
                     ok = finite(term.constant);
@@ -206,6 +229,7 @@ Prepared prepare(const std::vector<Observation>& observations, const SetLists& s
                 continue;
             }
             usable[p] = 1;
+            if (exposureSlot >= 0 && lit) used.push_back(std::uint32_t(exposureSlot));
             std::sort(used.begin(), used.end());
             used.erase(std::unique(used.begin(), used.end()), used.end());
             own.insert(own.end(), used.begin(), used.end());
@@ -324,6 +348,7 @@ private:
 // The outcome of one round: the solution with its uncertainty and what the round cost.
 struct RoundOutcome {
     std::vector<MaterialFit> materials;
+    ExposureFit exposure;  // with FitOptions::fitExposure
     std::vector<std::vector<double>> naturalStd;  // per slot, in natural coordinates
     double rmse = 0;
     int iterations = 0;
@@ -445,21 +470,24 @@ class RoundSolver {
     };
 
 public:
-    // `firstRound`: scan the exponents (FitOptions::scanStart) and start the
-    // instrumental-variables solve from the least-squares solution (see solve).
+    // `start` holds the materials and, with FitOptions::fitExposure, the exposure as one more
+    // slot (exposureSlot), whose start the first round sets (matchExposure). `firstRound`: match
+    // the exposure and scan the exponents (FitOptions::scanStart).
     RoundSolver(const std::vector<Observation>& observations, const std::vector<PathSet>& first,
-                const std::vector<PathSet>& second, const std::vector<PhongMaterial>& start,
+                const std::vector<PathSet>& second, std::vector<PhongMaterial>& start,
                 const FitOptions& options, int threads, bool firstRound)
         : start_(start),
           options_(options),
           slots_(int(start.size())),
+          exposureSlot_(options.fitExposure ? slots_ - 1 : -1),
           instrumental_(options.estimator == Estimator::InstrumentalVariables),
-          scan_(firstRound && options.scanStart),
+          firstRound_(firstRound),
           // Exact sets passed as both recordings: pooling would only double the work.
           pooled_(&first == &second ? std::vector<PathSet>{} : poolAll(first, second)),
           leastSquaresSets_(&first == &second ? &first : &pooled_),
           sets_(instrumental_ ? SetLists{&first, &second} : SetLists{leastSquaresSets_}),
-          prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0)),
+          prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0,
+                        exposureSlot_)),
           loss_(makeLoss(options, prep_.meanObserved)),
           arena_(threads) {}
 
@@ -476,7 +504,8 @@ public:
                 if (isHeld(held[s], i)) y[i] = y0[i];
             toInternal<P>(y.data(), held[s], block(s));
         }
-        if (scan_) scanExponents(held);
+        if (firstRound_ && exposureSlot_ >= 0 && !held[exposureSlot_].n) matchExposure(held);
+        if (firstRound_ && options_.scanStart) scanExponents(held);
         Analysis analysis;
         do {
             analysis = instrumental_ ? solveInstrumental(held, out) : solveLeastSquares(held, out);
@@ -487,8 +516,14 @@ public:
                       held) ||
                  holdUnseenExponents(naturalStd(analysis.gram, analysis.leastSquaresScores, held),
                                      held));
-        for (int s = 0; s < slots_; ++s)
+        for (int s = 0; s < materialSlots(); ++s)
             out.materials.push_back(materialFit(s, held[s], out.naturalStd[s]));
+        if (exposureSlot_ >= 0) {
+            const NaturalVector y = naturalBlocks(held)[exposureSlot_];
+            out.exposure.value = std::exp(y[L::kLogN]) / kExposureCentre;
+            out.exposure.std = out.exposure.value * out.naturalStd[exposureSlot_][L::kLogN];
+            out.exposure.unconstrained = held[exposureSlot_].n;
+        }
         out.rmse = std::sqrt(analysis.squares / (3.0 * double(prep_.seeingMaterial)));
         out.pixelsUsed = prep_.pixels.size();
         out.leftOut = prep_.leftOut;
@@ -615,6 +650,45 @@ private:
 
     double* block(int s) { return x_.data() + std::size_t(s) * P; }
 
+    int materialSlots() const { return exposureSlot_ >= 0 ? slots_ - 1 : slots_; }
+
+    // The exposure at natural coordinates y (1 when it is not fitted).
+    double exposure(const double* y) const {
+        if (exposureSlot_ < 0) return 1;
+        return std::exp(y[std::size_t(exposureSlot_) * P + L::kLogN]) / kExposureCentre;
+    }
+
+    // The exposure s that fits the images best with the materials where they are: least squares
+    // in s alone is linear, s = <I, y> / <I, I> over the weighted pixels (one Gauss-Newton step in
+    // log s from anywhere lands there). It is also the value the exposure is held at if the images
+    // do not constrain it (FitOptions::fitExposure).
+    void matchExposure(const std::vector<HeldParams>& held) {
+        std::vector<double> y(std::size_t(slots_) * P);
+        for (int s = 0; s < slots_; ++s)
+            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        double squares = 0;
+        Eigen::VectorXd gradient;
+        Eigen::MatrixXd gramian;
+        leastSquaresSums(y.data(), squares, &gradient, &gramian);
+        const Eigen::Index e = Eigen::Index(exposureSlot_) * P + L::kLogN;
+        // With s I the weighted prediction: gradient = <sI, sI - y>, gramian = <sI, sI>.
+        const double predicted = gramian(e, e), product = predicted - gradient[e];
+        if (!(predicted > 0) || !(product > 0))
+            throw Error(fmt::format(
+                "--fit-exposure: the {} where a fitted material is seen (nothing to scale)",
+                predicted > 0 ? "images are black" : "start materials render black"));
+        const double s = exposure(y.data()) * product / predicted;
+        if (!(s >= kMinExposure && s <= kMaxExposure))
+            throw Error(fmt::format(
+                "--fit-exposure: the images are {:.3g} times as bright as the scene renders them "
+                "at the start (allowed: {:.3g} to {:.3g}; scale the emitters)",
+                s, kMinExposure, kMaxExposure));
+        start_[exposureSlot_].n = s * kExposureCentre;
+        y[std::size_t(e)] = std::log(s * kExposureCentre);
+        toInternal<P>(y.data() + std::size_t(exposureSlot_) * P, held[exposureSlot_],
+                      block(exposureSlot_));
+    }
+
     std::span<const std::uint32_t> pixelSlots(const UsedPixel& u) const {
         return {prep_.slots.data() + u.slotBegin, u.slotCount};
     }
@@ -650,6 +724,11 @@ private:
         for (int index : indices) {
             const int s = index / P, i = index % P;
             if (isHeld(held[s], i)) continue;
+            changed = true;
+            if (s == exposureSlot_) {
+                holdExposure(held);
+                continue;
+            }
             NaturalVector y;
             toNatural<P>(block(s), held[s], y.data());
             y[i] = naturalFromPhong<P>(start_[s])[i];
@@ -660,9 +739,31 @@ private:
             else
                 held[s].ks[i - L::kGroups] = true;
             toInternal<P>(y.data(), held[s], block(s));
-            changed = true;
         }
         return changed;
+    }
+
+    // An exposure the images do not constrain trades against the scale of every kd and ks: only
+    // the products s kd and s ks are seen. It is held at the start (matchExposure), or higher where
+    // kd + ks would otherwise exceed 1, and the materials are rescaled to keep the products.
+    void holdExposure(std::vector<HeldParams>& held) {
+        std::vector<NaturalVector> y = naturalBlocks(held);
+        NaturalVector& e = y[exposureSlot_];
+        const double current = std::exp(e[L::kLogN]) / kExposureCentre;
+        double highest = 0;  // of kd + ks over the materials' colour groups
+        for (int m = 0; m < materialSlots(); ++m)
+            for (int g = 0; g < L::kGroups; ++g)
+                highest = std::max(highest, y[m][L::diffuse(g)] + y[m][L::specular(g)]);
+        const double s = std::max(start_[exposureSlot_].n / kExposureCentre, current * highest);
+        for (int m = 0; m < materialSlots(); ++m) {
+            for (int i = 0; i < L::kLogN; ++i)
+                if (!isHeld(held[m], i)) y[m][i] *= current / s;
+            toInternal<P>(y[m].data(), held[m], block(m));
+        }
+        held[exposureSlot_].n = true;
+        start_[exposureSlot_].n = s * kExposureCentre;
+        e[L::kLogN] = std::log(start_[exposureSlot_].n);
+        toInternal<P>(e.data(), held[exposureSlot_], block(exposureSlot_));
     }
 
     // n only shapes the lobe: when no group's ks is significantly above 0 (or every ks is held),
@@ -671,7 +772,7 @@ private:
     bool holdUnseenExponents(const std::vector<std::vector<double>>& stdNatural,
                              std::vector<HeldParams>& held) {
         std::vector<int> indices;
-        for (int s = 0; s < slots_; ++s) {
+        for (int s = 0; s < materialSlots(); ++s) {
             if (held[s].n) continue;
             NaturalVector y;
             toNatural<P>(block(s), held[s], y.data());
@@ -723,7 +824,7 @@ private:
         std::vector<double> grid;
         for (double n = 1; n < kMaxExponent; n *= 4) grid.push_back(std::log(n));
         grid.push_back(std::log(kMaxExponent));
-        for (int s = 0; s < slots_; ++s) {
+        for (int s = 0; s < materialSlots(); ++s) {
             if (held[s].n || !prep_.slotSeen[s]) continue;
             const std::size_t at = std::size_t(s) * P;
             std::vector<int> reflectances;  // free kd and ks coordinates of the slot
@@ -882,24 +983,35 @@ private:
                         jacobians ? &scratch.jacobians[k] : nullptr);
     }
 
+    // The exposure slot, the last of a pixel's slots when it is fitted, is not replayed: the
+    // prediction is s I and its derivative with respect to log s is s I.
     Eigen::Vector3d residual(const PathSet& paths, const UsedPixel& u, const double* y,
                              Scratch& scratch, std::vector<Jacobian>* jacobians) const {
         const std::span<const std::uint32_t> slots = pixelSlots(u);
+        const bool exposed = exposureSlot_ >= 0 && !slots.empty() &&
+                             slots.back() == std::uint32_t(exposureSlot_);
+        const std::span<const std::uint32_t> materials = slots.first(slots.size() - exposed);
+        const double s = exposure(y);
         Color3 predicted = Color3::Zero();
-        if (jacobians != nullptr) {
+        if (jacobians != nullptr) jacobians->resize(u.slotCount);
+        if (jacobians != nullptr && !materials.empty()) {
             std::vector<Jacobian>& j = *jacobians;
-            j.resize(u.slotCount);
-            for (std::uint32_t b = 0; b < u.slotCount; ++b) {
-                predicted = replayNaturalJacobian<P>(paths, u.pixel, slots, y, slots[b],
+            for (std::size_t b = 0; b < materials.size(); ++b) {
+                predicted = replayNaturalJacobian<P>(paths, u.pixel, materials, y, materials[b],
                                                      scratch.jets, j[b]);
-                j[b] *= u.weight;
+                j[b] *= u.weight * s;
             }
         } else {
-            for (std::uint32_t s : slots)
-                scratch.plain[s] = naturalToPhong<P>(y + std::size_t(s) * P);
+            for (std::uint32_t m : materials)
+                scratch.plain[m] = naturalToPhong<P>(y + std::size_t(m) * P);
             predicted = replayPixel(paths, u.pixel, scratch.plain.data());
         }
-        return (u.weight * (predicted - u.observed)).matrix();
+        if (jacobians != nullptr && exposed) {
+            Jacobian& j = (*jacobians)[u.slotCount - 1];
+            j.setZero();
+            j.col(L::kLogN) = u.weight * s * predicted.matrix();
+        }
+        return (u.weight * (s * predicted - u.observed)).matrix();
     }
 
     // Sum over the first `count` used pixels of body(pixel index, sum, scratch), in parallel,
@@ -1316,11 +1428,12 @@ private:
         return m;
     }
 
-    const std::vector<PhongMaterial>& start_;
+    std::vector<PhongMaterial>& start_;
     const FitOptions& options_;
     int slots_;
+    int exposureSlot_;  // -1 when the exposure is not fitted
     bool instrumental_;
-    bool scan_;
+    bool firstRound_;
     std::vector<PathSet> pooled_;  // for least squares
     const std::vector<PathSet>* leastSquaresSets_;
     SetLists sets_;
@@ -1358,22 +1471,34 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     const int threads = options.threads > 0 ? options.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
     FitResult result;
-    std::vector<PhongMaterial> theta = start;
-    std::vector<HeldParams> held(start.size());
+    // The fitted exposure is one more slot (RoundSolver::exposure), a "material" whose kd and ks
+    // are held at 0 and whose exponent is s * kExposureCentre; matchExposure starts it.
+    const std::size_t materials = start.size();
+    std::vector<PhongMaterial> slotStart = start;
+    std::vector<HeldParams> held(materials);
+    if (options.fitExposure) {
+        PhongMaterial exposure;
+        exposure.n = kExposureCentre;
+        slotStart.push_back(exposure);
+        held.emplace_back().kd.fill(true);
+        held.back().ks.fill(true);
+    }
+    std::vector<PhongMaterial> theta = slotStart;
     for (int round = 0; round < maxRounds; ++round) {
         const auto roundBegin = std::chrono::steady_clock::now();
-        const RoundSets sets = recordAll(theta, round);
+        const RoundSets sets =
+            recordAll(std::vector<PhongMaterial>(theta.begin(), theta.begin() + materials), round);
         const double recordSeconds = secondsSince(roundBegin);
         for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
             if (paths->size() != observations.size())
                 throw Error(fmt::format("the recorder returned {} path sets for {} views",
                                         paths->size(), observations.size()));
             for (std::size_t v = 0; v < observations.size(); ++v)
-                checkPathSet((*paths)[v], observations[v], int(v), int(start.size()));
+                checkPathSet((*paths)[v], observations[v], int(v), int(materials));
         }
         // Later rounds start where the last one ended, near enough for the instruments.
-        RoundSolver<P> solver(observations, *sets.first, *sets.second, start, options, threads,
-                              round == 0);
+        RoundSolver<P> solver(observations, *sets.first, *sets.second, slotStart, options,
+                              threads, round == 0);
         const std::vector<PhongMaterial> recorded = theta;
         RoundOutcome out = solver.solve(theta, held);
 
@@ -1385,19 +1510,25 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         r.iterations = out.iterations;
         r.secondsPerIteration = out.minimizerSeconds / std::max(out.iterations, 1);
         r.materials = out.materials;
+        r.exposure = out.exposure;
+        r.recordedBytes = recordedBytes(*sets.first) +
+                          (sets.first == sets.second ? 0 : recordedBytes(*sets.second));
+        r.peakMemoryBytes = peakResidentBytes();
         result.rounds.push_back(r);
         if (options.onRound) options.onRound(r);
+        for (std::size_t s = 0; s < materials; ++s) theta[s] = out.materials[s].material();
+        if (options.fitExposure) theta.back().n = out.exposure.value * kExposureCentre;
         std::vector<Eigen::Matrix<double, P, 1>> before, after;
         for (std::size_t s = 0; s < theta.size(); ++s) {
             before.push_back(naturalFromPhong<P>(recorded[s]));
-            after.push_back(naturalFromPhong<P>(out.materials[s].material()));
-            theta[s] = out.materials[s].material();
+            after.push_back(naturalFromPhong<P>(theta[s]));
         }
         // Exact sets (the same list as both recordings) give the same problem every round: the
         // solver's own convergence is the answer.
         result.converged = withinTolerance<P>(before, after, out.naturalStd, options) ||
                            (sets.first == sets.second && out.solverConverged);
         result.materials = out.materials;
+        if (options.fitExposure) result.exposure = out.exposure;
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;

@@ -24,11 +24,15 @@
 // there solves g = 0, moving the instrument point to the solution until it stays put. The round
 // keeps the moment solution unless it does not settle or is clearly less precise than the cross-
 // product one (small images, where smoothing blurs the highlight); see RoundSolver.
+//
+// An unknown global exposure (FitOptions::fitExposure) is one more parameter, s, multiplying every
+// prediction; the solver carries it as an extra slot whose only free coordinate is log s.
 #pragma once
 
 #include <cstddef>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +41,12 @@
 #include "phong_brdf.h"
 
 namespace phongfit {
+
+// The range of a fitted exposure: 4.5 decades either side of 1 (the fitter lays s out as an
+// exponent, s * kExposureCentre, whose range is 1e-3 to 1e6).
+inline constexpr double kExposureCentre = 31.622776601683793;
+inline constexpr double kMinExposure = 1e-3 / kExposureCentre;
+inline constexpr double kMaxExposure = 1e6 / kExposureCentre;
 
 enum class LossKind { L2, Huber, Cauchy };
 
@@ -61,19 +71,37 @@ struct MaterialFit {
     PhongMaterial material() const;
 };
 
+// FitOptions::fitExposure: the global scale s of every prediction (observed = s * rendered).
+struct ExposureFit {
+    double value = 1, std = 0;
+    // The images cannot tell s from the overall scale of kd and ks (one object under direct light
+    // only, nothing of known reflectance in view): s is then held where the start materials match
+    // the images' brightness, or as far above as kd + ks <= 1 needs, and kd and ks are relative
+    // to it (only s kd and s ks are measured).
+    bool unconstrained = false;
+};
+
 struct FitRound {
     int round = 0;
     double timeSeconds = 0;    // recording + solving
     double recordSeconds = 0;  // in the recorder
+    // The two recorded path sets of all views: terms and vertices, in bytes.
+    std::size_t recordedBytes = 0;
+    std::size_t peakMemoryBytes = 0;  // the process' peak resident memory after the round
     double rmse = 0;     // at this round's solution, of the mean prediction of its two path sets
     int iterations = 0;  // Ceres iterations, over all solves of the round
     double secondsPerIteration = 0;
     std::vector<MaterialFit> materials;
+    ExposureFit exposure;  // with FitOptions::fitExposure
 };
 
 struct FitOptions {
     Estimator estimator = Estimator::InstrumentalVariables;
     bool grey = false;  // kd and ks shared by the three channels
+    // Fit an unknown global exposure s with the materials (observed = s * rendered, for
+    // photographs of uncertain exposure or light power), s in [kMinExposure, kMaxExposure]. Its
+    // start matches the start materials' brightness to the images'.
+    bool fitExposure = false;
     LossKind loss = LossKind::L2;
     // Huber/Cauchy scale as a fraction of the mean observed intensity (over used pixels and
     // channels): a pixel whose RGB residual norm exceeds it counts as an outlier.
@@ -104,6 +132,7 @@ struct FitOptions {
 
 struct FitResult {
     std::vector<MaterialFit> materials;  // indexed by slot
+    std::optional<ExposureFit> exposure;  // with FitOptions::fitExposure
     double rmse = 0;                     // of the last round
     std::vector<FitRound> rounds;
     double timeSeconds = 0;

@@ -66,6 +66,13 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
     EXPECT_TRUE(report["rmse"].is_number());
     EXPECT_GE(report["rounds"].size(), 1u);
     EXPECT_TRUE(report["rounds"][0]["time_s"].is_number());
+    for (const auto& round : report["rounds"]) {
+        // Two path sets, each with at least a background colour and a term index per pixel.
+        const auto recorded = round["recorded_bytes"].get<std::size_t>();
+        EXPECT_GE(recorded, 2u * kSize * kSize * (3 * sizeof(float) + sizeof(std::uint32_t)));
+        EXPECT_GT(round["peak_memory_bytes"].get<std::size_t>(), recorded);
+    }
+    EXPECT_FALSE(report.contains("exposure")) << "only with --fit-exposure";
     EXPECT_EQ(report["views"][0]["max_depth"], 2);
     EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1) << "a coarse check; recovery is tested elsewhere";
 
@@ -100,6 +107,10 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
     Image wrongSize(kSize + 1, kSize);
     writeExr(wrongSize, path("wrong_size.exr"));
     std::ofstream(path("garbage.exr")) << "not an image";
+    writeExr(Image(kSize, kSize), path("black.exr"));
+    Image glaring = readImage(path("sphere.exr"));
+    for (float& v : glaring.rgb) v *= 1e6f;
+    writeExr(glaring, path("glaring.exr"));
     const std::string view = kSphere + ":" + path("sphere.exr");
     const std::string cornell = kScenes + "/cornell_phong.xml";
 
@@ -121,6 +132,11 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         {{"--view", view, "--material", "sphere", "--kd", "0.9", "--ks", "0.5"}, "exceeds 1"},
         {{"--view", view, "--material", "sphere", "--kd", "1,2"}, "--kd '1,2'"},
         {{"--view", view, "--material", "sphere", "--loss", "l1"}, "--loss"},
+        {{"--view", kSphere + ":" + path("black.exr"), "--material", "sphere", "--fit-exposure"},
+         "images are black"},
+        {{"--view", kSphere + ":" + path("glaring.exr"), "--material", "sphere", "--fit-exposure"},
+         "times as bright as the scene renders them"},
+        {{"--capture", path("capture"), "--fit-exposure"}, "--fit-exposure does not apply to --capture"},
     };
     for (const Case& c : cases) {
         std::vector<std::string> args = {"fit"};
