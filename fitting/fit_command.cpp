@@ -228,6 +228,7 @@ FitResult runFit(const FitArgs& args) {
         const View& v = views[view];
         RecordOptions o;
         o.spp = args.spp;
+        o.directSpp = args.directSpp;
         o.seed = args.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
         o.threads = args.threads;
         o.maxDepth = v.maxDepth;
@@ -318,6 +319,10 @@ void addFitCommand(CLI::App& app) {
     cmd->add_option("-o,--output", args->output, "output directory")->required();
     cmd->add_option("--mask", args->mask, "PNG mask: pixels that are 0 are left out");
     cmd->add_option("--spp", args->spp, "paths recorded per pixel and round")
+        ->check(CLI::Range(1, 4096));
+    cmd->add_option("--direct-spp", args->directSpp,
+                    "paths recorded per round in pixels that see a fitted material directly "
+                    "(default: --spp)")
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--compare-spp", args->compareSpp,
                     "paths per pixel of the re-rendered column of compare.png")

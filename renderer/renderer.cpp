@@ -279,8 +279,8 @@ PathSet Renderer::record(const RecordOptions& options) const {
                                     {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, true});
 
     // Refuse what would exhaust memory before trying: half the machine's is the budget.
-    const double bytes =
-        recordingBytes(integrator, camera_, scene_.sensor, options.seed, options.spp);
+    const double bytes = recordingBytes(integrator, camera_, scene_.sensor, options.seed,
+                                        std::max(options.spp, options.directSpp));
     const double budget = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     if (bytes > budget)
         throw Error(fmt::format(
@@ -291,7 +291,14 @@ PathSet Renderer::record(const RecordOptions& options) const {
     const int width = camera_.width(), height = camera_.height();
     const std::vector<Tile> tiles = makeTiles(width, height);
     std::vector<TileRecord> records(tiles.size());
-    const double scale = 1.0 / options.spp;
+    // Fixed per pixel, not decided by the pixel's own samples, so every pixel's estimate stays
+    // unbiased.
+    const auto pathsAt = [&](int x, int y) {
+        if (options.directSpp <= options.spp) return options.spp;
+        const std::optional<Hit> hit = geometry_->intersect(camera_.generateRay(x + 0.5, y + 0.5));
+        const int bsdf = hit ? scene_.shapes[hit->shape].bsdf : -1;
+        return bsdf >= 0 && slots[bsdf] >= 0 ? options.directSpp : options.spp;
+    };
     runInArena(options.threads, [&] {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
             std::uint64_t rays = 0;
@@ -304,7 +311,9 @@ PathSet Renderer::record(const RecordOptions& options) const {
                         const std::uint32_t p = pixelIndex(x, y, width);
                         const CounterRng rng(options.seed, p);
                         Color3 background = Color3::Zero();
-                        for (int s = 0; s < options.spp; ++s) {
+                        const int paths = pathsAt(x, y);
+                        const double scale = 1.0 / paths;
+                        for (int s = 0; s < paths; ++s) {
                             const Vec2d film =
                                 filmPosition(scene_.sensor, x, y, rng.uniform(s, 0), rng.uniform(s, 1));
                             const std::size_t termsBefore = rec.terms.size();

@@ -53,6 +53,9 @@ struct RenderResult {
 
 struct RecordOptions {
     int spp = 4;
+    // Paths per pixel where the pixel's centre sees a fitted material directly, when more than
+    // spp: those pixels carry what the images say about the material.
+    int directSpp = 0;
     std::uint64_t seed = 0;
     int threads = 0;
     int maxDepth = -2;
