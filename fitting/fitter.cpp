@@ -482,10 +482,9 @@ public:
           exposureSlot_(options.fitExposure ? slots_ - 1 : -1),
           instrumental_(options.estimator == Estimator::InstrumentalVariables),
           firstRound_(firstRound),
-          // Exact sets passed as both recordings: pooling would only double the work.
-          pooled_(&first == &second ? std::vector<PathSet>{} : poolAll(first, second)),
-          leastSquaresSets_(&first == &second ? &first : &pooled_),
-          sets_(instrumental_ ? SetLists{&first, &second} : SetLists{leastSquaresSets_}),
+          first_(&first),
+          second_(&second),
+          sets_(instrumental_ ? SetLists{&first, &second} : SetLists{&leastSquaresSets()}),
           prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0,
                         exposureSlot_)),
           loss_(makeLoss(options, prep_.meanObserved)),
@@ -641,11 +640,15 @@ private:
         return sum > 0 ? 1 / sum : 0;
     }
 
-    static std::vector<PathSet> poolAll(const std::vector<PathSet>& first,
-                                        const std::vector<PathSet>& second) {
-        std::vector<PathSet> pooled;
-        for (std::size_t v = 0; v < first.size(); ++v) pooled.push_back(pool(first[v], second[v]));
-        return pooled;
+    // The sets least squares replays: exact sets (the same list passed twice) as they are, else
+    // the two recordings pooled, built on first use: the instrumental-variables rounds need them
+    // only for the exponent scan, the exposure match and the fallback anchor.
+    const std::vector<PathSet>& leastSquaresSets() {
+        if (first_ == second_) return *first_;
+        if (pooled_.empty())
+            for (std::size_t v = 0; v < first_->size(); ++v)
+                pooled_.push_back(pool((*first_)[v], (*second_)[v]));
+        return pooled_;
     }
 
     double* block(int s) { return x_.data() + std::size_t(s) * P; }
@@ -1045,6 +1048,7 @@ private:
         const bool withJacobian = gradient != nullptr;
         const NormalSums zero{0.0, withJacobian ? Eigen::VectorXd::Zero(size) : Eigen::VectorXd(),
                               withJacobian ? Eigen::MatrixXd::Zero(size, size) : Eigen::MatrixXd()};
+        const std::vector<PathSet>& replayed = cross_ ? *first_ : leastSquaresSets();
         NormalSums sums = sumOverPixels(
             prep_.seeingMaterial, zero, [&](std::size_t i, NormalSums& sum, Scratch& scratch) {
                 const UsedPixel& u = prep_.pixels[i];
@@ -1075,7 +1079,7 @@ private:
                     return;
                 }
                 std::vector<Jacobian>& j = scratch.jacobians[0];
-                const Eigen::Vector3d r = residual((*leastSquaresSets_)[u.view], u, y, scratch,
+                const Eigen::Vector3d r = residual(replayed[u.view], u, y, scratch,
                                                    withJacobian ? &j : nullptr);
                 sum.squares += w * r.squaredNorm();
                 if (!withJacobian) return;
@@ -1434,8 +1438,9 @@ private:
     int exposureSlot_;  // -1 when the exposure is not fitted
     bool instrumental_;
     bool firstRound_;
-    std::vector<PathSet> pooled_;  // for least squares
-    const std::vector<PathSet>* leastSquaresSets_;
+    const std::vector<PathSet>* first_;
+    const std::vector<PathSet>* second_;
+    std::vector<PathSet> pooled_;  // leastSquaresSets(), once built
     SetLists sets_;
     Prepared prep_;
     std::unique_ptr<ceres::LossFunction> loss_;
