@@ -42,4 +42,16 @@ inline const ScratchDir& scratch() {
     return dir;
 }
 
+// The directory scene inputs resolve relative names in: the scratch directory, holding one small
+// mesh, `mesh.obj`, so that obj shapes are reached too.
+inline const std::string& sceneBaseDir() {
+    static const std::string dir = [] {
+        const std::string mesh = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n";
+        scratch().write("mesh.obj", reinterpret_cast<const std::uint8_t*>(mesh.data()),
+                        mesh.size());
+        return scratch().path().string();
+    }();
+    return dir;
+}
+
 }  // namespace phongfit::fuzz

@@ -16,16 +16,10 @@
 #include "scene_parser.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-    static const std::string baseDir = [] {
-        const std::string mesh = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n";
-        phongfit::fuzz::scratch().write(
-            "mesh.obj", reinterpret_cast<const std::uint8_t*>(mesh.data()), mesh.size());
-        return phongfit::fuzz::scratch().path().string();
-    }();
     phongfit::Scene scene;
     try {
         scene = phongfit::parseScene(std::string(reinterpret_cast<const char*>(data), size),
-                                     "fuzz.xml", {}, baseDir);
+                                     "fuzz.xml", {}, phongfit::fuzz::sceneBaseDir());
     } catch (const phongfit::Error&) {
         return -1;  // the parser's own target covers these
     }
