@@ -59,6 +59,29 @@ protected:
         return done;
     }
 
+    // An interrupted fit's outputs are complete: fit.json says so and holds finite, energy-
+    // conserving parameters, the fitted scene renders, the comparison reads, no temporary is left.
+    void expectCompleteInterruptedFit(const nlohmann::json& report, int size) const {
+        EXPECT_EQ(report["interrupted"], true);
+        const auto& m = report["materials"]["sphere"];
+        for (const char* key : {"kd", "ks"}) {
+            ASSERT_EQ(m[key].size(), 3u) << key;
+            for (int c = 0; c < 3; ++c) {
+                EXPECT_TRUE(std::isfinite(m[key][c].get<double>())) << key;
+                EXPECT_LE(m["kd"][c].get<double>() + m["ks"][c].get<double>(), 1 + 1e-9);
+            }
+        }
+        EXPECT_TRUE(std::isfinite(m["n"].get<double>()));
+        EXPECT_TRUE(std::isfinite(report["rmse"].get<double>()));
+        const std::string side = std::to_string(size);
+        const auto again = test::runProcess(
+            {PHONGFIT_EXE, "render", path("out/fitted.xml"), "-o", path("again.exr"), "--spp",
+             "1", "-D", "width=" + side, "-D", "height=" + side, "--quiet"});
+        EXPECT_EQ(again.exitCode, 0) << again.err;
+        EXPECT_EQ(cv::imread(path("out/compare.png")).rows, size);
+        expectNoTemporaries();
+    }
+
     fs::path dir_;
 };
 
@@ -81,26 +104,9 @@ TEST_F(FitSynthInterrupt, FitWritesBestParametersSoFarAfterSigint) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_EQ(r.err.find("round 3:"), std::string::npos) << "the fit went on after SIGINT";
     const auto report = nlohmann::json::parse(std::ifstream(path("out/fit.json")));
-    EXPECT_EQ(report["interrupted"], true);
     EXPECT_GE(report["rounds"].size(), 1u);
     EXPECT_LE(report["rounds"].size(), 2u) << "the round under way when the signal came, at most";
-    const auto& m = report["materials"]["sphere"];
-    for (const char* key : {"kd", "ks"}) {
-        ASSERT_EQ(m[key].size(), 3u) << key;
-        for (int c = 0; c < 3; ++c) {
-            EXPECT_TRUE(std::isfinite(m[key][c].get<double>())) << key;
-            EXPECT_LE(m["kd"][c].get<double>() + m["ks"][c].get<double>(), 1 + 1e-9);
-        }
-    }
-    EXPECT_TRUE(std::isfinite(m["n"].get<double>()));
-    EXPECT_TRUE(std::isfinite(report["rmse"].get<double>()));
-    // The other outputs are complete: the fitted scene renders, the comparison reads.
-    const auto again =
-        test::runProcess({PHONGFIT_EXE, "render", path("out/fitted.xml"), "-o", path("again.exr"),
-                          "--spp", "1", "-D", "width=40", "-D", "height=40", "--quiet"});
-    EXPECT_EQ(again.exitCode, 0) << again.err;
-    EXPECT_EQ(cv::imread(path("out/compare.png")).rows, 40);
-    expectNoTemporaries();
+    expectCompleteInterruptedFit(report, 40);
 }
 
 TEST_F(FitSynthInterrupt, FitInterruptedInItsFirstRoundStillWritesValidOutputs) {
@@ -119,15 +125,7 @@ TEST_F(FitSynthInterrupt, FitInterruptedInItsFirstRoundStillWritesValidOutputs) 
     const auto r =
         test::runProcess(args, {test::after(std::chrono::milliseconds(300)), {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    const auto report = nlohmann::json::parse(std::ifstream(path("out/fit.json")));
-    EXPECT_EQ(report["interrupted"], true);
-    const auto& m = report["materials"]["sphere"];
-    for (const char* key : {"kd", "ks"})
-        for (int c = 0; c < 3; ++c) EXPECT_TRUE(std::isfinite(m[key][c].get<double>())) << key;
-    EXPECT_TRUE(std::isfinite(m["n"].get<double>()));
-    EXPECT_TRUE(fs::exists(path("out/fitted.xml")));
-    EXPECT_TRUE(fs::exists(path("out/compare.png")));
-    expectNoTemporaries();
+    expectCompleteInterruptedFit(nlohmann::json::parse(std::ifstream(path("out/fit.json"))), 32);
 }
 
 TEST_F(FitSynthInterrupt, SynthKeepsFinishedSamplesAndResumes) {
