@@ -117,7 +117,8 @@ struct FitOptions {
     // numbers each round, two rounds' estimates differ by about 1.4 standard errors from noise
     // alone, and no tolerance below that is ever met; 3 passes such a difference 97% of the time
     // per parameter (2 passed 84%: with 7 parameters, most rounds after the estimate had settled
-    // went on for nothing). The instrument updates within a round stop at `tolerance` alone.
+    // went on for nothing). Round 0, which records at the start rather than at an estimate, and
+    // the instrument updates within a round stop at `tolerance` alone.
     double tolerance = 1e-3;
     double stdTolerance = 3;
     int maxIterations = 100;  // Ceres iterations per solve

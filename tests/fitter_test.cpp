@@ -659,6 +659,27 @@ TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
     EXPECT_FALSE(fitMaterials({obs}, record, {start}, options).converged);
 }
 
+// Round 0 records at the start, not at an estimate: its move from the start is no difference
+// between two estimates, and within a few standard errors of it (here the start is the truth) the
+// fit does not stop there. Round 1's move from round 0's estimate is, and the fit stops.
+TEST(Fitter, RoundZeroDoesNotPassForConvergedOnItsStandardErrors) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
+        PathSet ps = makePaths(scene);
+        std::mt19937 rng(200 + recording);
+        std::normal_distribution<float> noise(0, 0.1f);
+        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        return ps;
+    };
+    FitOptions options;
+    options.maxRounds = 8;
+    const FitResult r = fitMaterials({obs}, record, {kTruth}, options);
+    expectFinite(r);
+    EXPECT_TRUE(r.converged);
+    EXPECT_GE(r.rounds.size(), 2u);
+}
+
 TEST(Fitter, StopRequestEndsTheFitAfterTheRoundUnderWayWithItsEstimate) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
