@@ -54,9 +54,14 @@ void runDemo(const DemoArgs& args) {
     fit.kd = "0.25";  // far from the truth (0.5, 0.2, 30): n off by 10x
     fit.ks = "0.45";
     fit.n = 300;
+    // The sphere's own pixels carry what the image says about it: 32 paths there, 4 elsewhere
+    // (measured: ks 2.2% -> 1.3% and n 1.4% -> 0.3% off, 1.2 s -> 1.5 s).
+    fit.directSpp = 32;
     fit.threads = args.threads;
     fit.quiet = args.quiet;
-    fmt::print("fitting the sphere from kd = {}, ks = {}, n = {}\n", fit.kd, fit.ks, *fit.n);
+    fmt::print("fitting the sphere from kd = {}, ks = {}, n = {} ({} paths per pixel and round, {} "
+               "where the sphere is seen)\n",
+               fit.kd, fit.ks, *fit.n, fit.spp, fit.directSpp);
     const FitResult result = runFit(fit);
 
     const MaterialFit& m = result.materials[0];

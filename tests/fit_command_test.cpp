@@ -100,6 +100,22 @@ void writeExrWithNan(const std::string& file) {
     out.writePixels(kSize);
 }
 
+// The main job (README, command 1): render the Cornell box, fit its sphere back, print the table.
+TEST_F(FitCommand, DemoRendersFitsBackAndPrintsTheErrors) {
+    const auto r = run({"demo", "-o", path("demo"), "--spp", "64", "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_TRUE(fs::exists(path("demo/cornell.exr")));
+    EXPECT_TRUE(fs::exists(path("demo/fit/fitted.xml")));
+    const auto report = nlohmann::json::parse(std::ifstream(path("demo/fit/fit.json")));
+    const auto& m = report["materials"]["sphere"];
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(m["kd"][c].get<double>(), 0.5, 0.02 * 0.5);
+        EXPECT_NEAR(m["ks"][c].get<double>(), 0.2, 0.05 * 0.2);
+    }
+    EXPECT_NEAR(m["n"].get<double>(), 30, 0.1 * 30);
+    for (const char* row : {"kd.r", "ks.b", "n "}) EXPECT_NE(r.out.find(row), std::string::npos) << r.out;
+}
+
 TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
     cv::imwrite(path("mask_small.png"), cv::Mat(kSize / 2, kSize, CV_8U, cv::Scalar(255)));
     cv::imwrite(path("mask_zero.png"), cv::Mat(kSize, kSize, CV_8U, cv::Scalar(0)));
