@@ -490,9 +490,15 @@ public:
           loss_(makeLoss(options, prep_.meanObserved)),
           arena_(threads) {}
 
-    // `theta` is the estimate to start from; `held` persists across rounds and grows.
+    // `theta` is the estimate to start from; `held` persists across rounds: the held kd and ks
+    // stay held, a held n is tested again (see below).
     RoundOutcome solve(const std::vector<PhongMaterial>& theta, std::vector<HeldParams>& held) {
         RoundOutcome out;
+        // Whether the images show a lobe is decided anew at each round's solution: an n held at
+        // a start far off (100 for a true 10) leaves ks small there, but the next round, recorded
+        // nearer the truth, can show the lobe.
+        if (!firstRound_)
+            for (int s = 0; s < materialSlots(); ++s) held[s].n = false;
         for (int s = 0; s < slots_; ++s)
             if (!prep_.slotSeen[s]) holdAll(held[s]);
         x_.assign(std::size_t(slots_) * P, 0.0);

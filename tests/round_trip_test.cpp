@@ -23,6 +23,7 @@ namespace fs = std::filesystem;
 const std::string kLit = PHONGFIT_TEST_SCENES_DIR "/sphere_lit.xml";
 const std::string kCornell = PHONGFIT_SCENES_DIR "/cornell_phong.xml";
 const std::string kPoint = PHONGFIT_SCENES_DIR "/sphere_point.xml";
+const std::string kOrbit = PHONGFIT_SCENES_DIR "/sphere_orbit.xml";
 
 class RoundTrip : public ::testing::Test {
 protected:
@@ -169,6 +170,24 @@ TEST_F(RoundTrip, SubPixelHighlightKeepsItsExponentFree) {
     }
     EXPECT_GT(m["n"].get<double>(), 50000 / 3.0);
     EXPECT_LT(m["n"].get<double>(), 50000 * 3.0);
+}
+
+// A backlit sphere (stiff-case study sample 35): at 4 paths round 0, recorded at the start
+// (n = 100 for a true 10.7), sees too little of the lobe and holds n there; held for good, ks
+// stayed small and kd went to 0.96 +- 0.14, 4.6 standard errors off. The lobe test is decided
+// anew each round, and the estimate's errors then cover the truth.
+TEST_F(RoundTrip, GrazingHighlightReleasesAnExponentHeldInRoundZero) {
+    const std::map<std::string, std::string> truth = {
+        {"kd", "0.31"}, {"ks", "0.29"}, {"n", "10.65"}, {"light_x", "-2.005"},
+        {"light_y", "2.976"}, {"light_z", "-6.092"}};
+    const std::string image = render(kOrbit, truth, "grazing", 256);
+    std::vector<std::string> extra = {"--grey", "--kd", "0.25", "--ks", "0.25", "--n", "100",
+                                      "--spp", "4"};
+    const auto d = defines(truth);
+    extra.insert(extra.end(), d.begin(), d.end());
+    const auto m = fit({kOrbit + ":" + image}, extra, "fit")["materials"]["sphere"];
+    EXPECT_TRUE(m["unconstrained"].empty()) << m["unconstrained"].dump();
+    EXPECT_LT(std::abs(m["kd"][0].get<double>() - 0.31), 3 * m["kd_std"][0].get<double>());
 }
 
 TEST_F(RoundTrip, NoSpecularLobeLeavesNUnconstrained) {
