@@ -627,17 +627,22 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
     EXPECT_EQ(one.rounds.size(), 1u);
 }
 
-TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
-    const SphereScene scene = threeLights();
-    const Observation obs = observe(makePaths(scene), {kTruth});
-    // Each recording is an unbiased but noisy estimate: constants times 1 + 10% noise.
-    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
+// Each recording an unbiased but noisy estimate of `scene`: constants times 1 + 10% noise, drawn
+// from seed + the recording's index.
+PathRecorder noisyRecorder(const SphereScene& scene, unsigned seed) {
+    return [scene, seed](int, const std::vector<PhongMaterial>&, int recording) {
         PathSet ps = makePaths(scene);
-        std::mt19937 rng(100 + recording);
+        std::mt19937 rng(seed + unsigned(recording));
         std::normal_distribution<float> noise(0, 0.1f);
         for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
         return ps;
     };
+}
+
+TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    const PathRecorder record = noisyRecorder(scene, 100);
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
     FitOptions options;
     options.maxRounds = 8;
@@ -665,16 +670,9 @@ TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
 TEST(Fitter, RoundZeroDoesNotPassForConvergedOnItsStandardErrors) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
-    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
-        PathSet ps = makePaths(scene);
-        std::mt19937 rng(200 + recording);
-        std::normal_distribution<float> noise(0, 0.1f);
-        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
-        return ps;
-    };
     FitOptions options;
     options.maxRounds = 8;
-    const FitResult r = fitMaterials({obs}, record, {kTruth}, options);
+    const FitResult r = fitMaterials({obs}, noisyRecorder(scene, 200), {kTruth}, options);
     expectFinite(r);
     EXPECT_TRUE(r.converged);
     EXPECT_GE(r.rounds.size(), 2u);
