@@ -579,9 +579,7 @@ private:
         const std::vector<double> before = x_;
         cross_ = true;
         account(out, minimizeLeastSquares(held));
-        std::vector<double> y(std::size_t(slots_) * P);
-        for (int s = 0; s < slots_; ++s)
-            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        const std::vector<double> y = naturalCoordinates(held);
         double crossSum = 0;
         leastSquaresSums(y.data(), crossSum, nullptr, nullptr);
         cross_ = false;
@@ -660,6 +658,14 @@ private:
 
     int materialSlots() const { return exposureSlot_ >= 0 ? slots_ - 1 : slots_; }
 
+    // Every slot's natural coordinates, P per slot, as the sums over pixels take them.
+    std::vector<double> naturalCoordinates(const std::vector<HeldParams>& held) {
+        std::vector<double> y(std::size_t(slots_) * P);
+        for (int s = 0; s < slots_; ++s)
+            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        return y;
+    }
+
     // The exposure at natural coordinates y (1 when it is not fitted).
     double exposure(const double* y) const {
         if (exposureSlot_ < 0) return 1;
@@ -671,9 +677,7 @@ private:
     // log s from anywhere lands there). It is also the value the exposure is held at if the images
     // do not constrain it (FitOptions::fitExposure).
     void matchExposure(const std::vector<HeldParams>& held) {
-        std::vector<double> y(std::size_t(slots_) * P);
-        for (int s = 0; s < slots_; ++s)
-            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        std::vector<double> y = naturalCoordinates(held);
         double squares = 0;
         Eigen::VectorXd gradient;
         Eigen::MatrixXd gramian;
@@ -833,9 +837,7 @@ private:
     // is compared. The step is exact where every recorded term has one vertex on the material,
     // as under direct light: I is then linear in kd and ks; bounds are then imposed by clamping.
     void scanExponents(const std::vector<HeldParams>& held) {
-        std::vector<double> y(std::size_t(slots_) * P), trial, best;
-        for (int s = 0; s < slots_; ++s)
-            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        std::vector<double> y = naturalCoordinates(held), trial, best;
         std::vector<double> grid;
         for (double n = 1; n < kMaxExponent; n *= 4) grid.push_back(std::log(n));
         grid.push_back(std::log(kMaxExponent));
@@ -1144,9 +1146,7 @@ private:
     // The sums at the current estimate (see Analysis). Keeps each set's Jacobians, residuals and
     // loss weights there: the next instruments, and what the scores are computed from.
     Analysis analyse(const std::vector<HeldParams>& held) {
-        std::vector<double> y(std::size_t(slots_) * P);
-        for (int s = 0; s < slots_; ++s)
-            toNatural<P>(block(s), held[s], y.data() + std::size_t(s) * P);
+        const std::vector<double> y = naturalCoordinates(held);
         const int sets = int(sets_.size());
         const bool moments = !instrumental_ || !instruments_[0].empty();
         for (int k = 0; k < sets; ++k) {
