@@ -41,6 +41,24 @@ Errors errorsOf(const MaterialFit& m, const PhongMaterial& truth) {
     return {colourError(m.kd, truth.kd), colourError(m.ks, truth.ks), exponentError(m.n, truth.n)};
 }
 
+// Whether every parameter the fit did not hold lies within 3 of its standard errors of the truth
+// (kd and ks per channel): whether the uncertainty the tool reports covers its error.
+bool withinErrors(const MaterialFit& m, const PhongMaterial& truth) {
+    const auto held = [&](const std::string& name) {
+        return std::find(m.unconstrained.begin(), m.unconstrained.end(), name) !=
+               m.unconstrained.end();
+    };
+    const auto covers = [](double x, double t, double sd) { return std::abs(x - t) <= 3 * sd; };
+    for (int c = 0; c < 3; ++c) {
+        const std::string channel(1, "rgb"[c]);
+        if (!held("kd") && !held("kd." + channel) && !covers(m.kd[c], truth.kd[c], m.kdStd[c]))
+            return false;
+        if (!held("ks") && !held("ks." + channel) && !covers(m.ks[c], truth.ks[c], m.ksStd[c]))
+            return false;
+    }
+    return held("n") || covers(m.n, truth.n, m.nStd);
+}
+
 struct RoundPoint {
     double seconds = 0;  // cumulative, over the rounds so far
     Errors errors;
@@ -56,6 +74,7 @@ struct FitRow {
     double seconds = 0;  // wall time of the whole fit command
     double rmse = 0;
     Errors errors;
+    bool withinErrors = false;
     bool failed = false;
     std::string error;
     std::vector<RoundPoint> history;
@@ -94,6 +113,7 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
         row.converged = r.converged;
         row.rmse = r.rmse;
         row.errors = errorsOf(row.fit, s.truth);
+        row.withinErrors = withinErrors(row.fit, s.truth);
         double cumulative = 0;
         for (const FitRound& round : r.rounds) {
             cumulative += round.timeSeconds;
@@ -135,7 +155,7 @@ std::string recoveryCsv(const std::vector<FitRow>& rows) {
         "sample,group,spp_per_round,kd_r_true,kd_g_true,kd_b_true,ks_r_true,ks_g_true,ks_b_true,"
         "n_true,kd_r,kd_g,kd_b,ks_r,ks_g,ks_b,n,kd_r_std,kd_g_std,kd_b_std,ks_r_std,ks_g_std,"
         "ks_b_std,n_std,kd_rel_err,ks_rel_err,n_rel_err,rounds,converged,time_s,rmse,"
-        "unconstrained,failed,error\n";
+        "unconstrained,within_3_std,failed,error\n";
     auto colour = [](const Color3& c) {
         return fmt::format("{:.6g},{:.6g},{:.6g}", c[0], c[1], c[2]);
     };
@@ -151,9 +171,9 @@ std::string recoveryCsv(const std::vector<FitRow>& rows) {
                 r.errors.ks, r.errors.n, r.rounds, int(r.converged), r.seconds, r.rmse);
         else
             csv += fmt::format(",,,,,,,,,,,,,,,,,,{:.4g},,", r.seconds);
-        csv +=
-            fmt::format("{},{},{}\n", csvField(fmt::format("{}", fmt::join(m.unconstrained, ";"))),
-                        int(r.failed), csvField(r.error));
+        csv += fmt::format("{},{},{},{}\n",
+                           csvField(fmt::format("{}", fmt::join(m.unconstrained, ";"))),
+                           int(r.withinErrors), int(r.failed), csvField(r.error));
     }
     return csv;
 }
@@ -181,7 +201,7 @@ double quantile(std::vector<double> v, double q) {
 struct SummaryRow {
     int spp = 0;
     std::string group;
-    int fits = 0, failed = 0, threw = 0, notConverged = 0, unconstrained = 0;
+    int fits = 0, failed = 0, threw = 0, notConverged = 0, unconstrained = 0, withinErrors = 0;
     double kdMedian = 0, kdP95 = 0, ksMedian = 0, ksP95 = 0, nMedian = 0, nP95 = 0;
     double medianSeconds = 0, totalSeconds = 0, medianRounds = 0;
 };
@@ -200,6 +220,7 @@ SummaryRow summarize(int spp, const std::string& group, const std::vector<const 
         if (!r->returned || !finite(r->fit)) continue;
         s.notConverged += !r->converged;
         s.unconstrained += !r->fit.unconstrained.empty();
+        s.withinErrors += r->withinErrors;
         kd.push_back(r->errors.kd);
         ks.push_back(r->errors.ks);
         n.push_back(r->errors.n);
@@ -242,15 +263,16 @@ std::string percent(double v) { return std::isnan(v) ? "-" : fmt::format("{:.3g}
 
 std::string markdownTable(const std::vector<SummaryRow>& rows) {
     std::string md =
-        "| spp/round | group | fits | failed | not converged | unconstrained | kd median | kd p95 "
-        "| ks median | ks p95 | n median | n p95 | rounds (median) | time median [s] | time "
-        "total [s] |\n"
-        "|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+        "| spp/round | group | fits | failed | not converged | unconstrained | within 3 std | kd "
+        "median | kd p95 | ks median | ks p95 | n median | n p95 | rounds (median) | time median "
+        "[s] | time total [s] |\n"
+        "|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const SummaryRow& s : rows)
         md += fmt::format(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2f} "
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2f} "
             "| {:.1f} |\n",
-            s.spp, s.group, s.fits, s.failed, s.notConverged, s.unconstrained, percent(s.kdMedian),
+            s.spp, s.group, s.fits, s.failed, s.notConverged, s.unconstrained, s.withinErrors,
+            percent(s.kdMedian),
             percent(s.kdP95), percent(s.ksMedian), percent(s.ksP95), percent(s.nMedian),
             percent(s.nP95), std::isnan(s.medianRounds) ? "-" : fmt::format("{:g}", s.medianRounds),
             s.medianSeconds, s.totalSeconds);
@@ -266,6 +288,7 @@ json toJson(const SummaryRow& s) {
             {"threw", s.threw},
             {"not_converged", s.notConverged},
             {"unconstrained", s.unconstrained},
+            {"within_3_std", s.withinErrors},
             {"kd_rel_err", {{"median", number(s.kdMedian)}, {"p95", number(s.kdP95)}}},
             {"ks_rel_err", {{"median", number(s.ksMedian)}, {"p95", number(s.ksP95)}}},
             {"n_rel_err", {{"median", number(s.nMedian)}, {"p95", number(s.nP95)}}},
@@ -403,7 +426,9 @@ void runBenchFit(const BenchFitOptions& o) {
     const std::string definitions = fmt::format(
         "Relative errors: |x - x_true| / |x_true|, for kd and ks with |.| the RGB length. A fit "
         "fails when it throws, returns a non-finite value, or a relative error exceeds {:g}; "
-        "\"unconstrained\" counts fits that reported a parameter the image does not constrain. "
+        "\"unconstrained\" counts fits that reported a parameter the image does not constrain; "
+        "\"within 3 std\" those whose every parameter not held is within 3 of its reported "
+        "standard errors of the truth. "
         "Start for every sample: kd {}, ks {}, n {:g}; at most {} rounds.",
         o.failThreshold, o.startKd, o.startKs, o.startN, o.rounds);
     const std::string md = markdownTable(table);
