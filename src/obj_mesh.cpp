@@ -105,10 +105,13 @@ TriangleMesh readObjMesh(std::istream& in, const std::string& path, const std::s
                 mesh.positions.emplace_back(v[0], v[1], v[2]);
                 if (allNormals) {
                     const tinyobj::real_t* n = &attrib.normals[3 * std::size_t(ni)];
-                    const Vec3f normal{n[0], n[1], n[2]};
-                    if (!normal.allFinite() || normal.squaredNorm() == 0)
+                    // In double: a float's square overflows above 1.8e19 (the normal became 0)
+                    // and underflows below 5e-23.
+                    const Eigen::Vector3d normal{n[0], n[1], n[2]};
+                    const double length = normal.norm();
+                    if (!std::isfinite(length) || length == 0)
                         throw malformed(fmt::format("normal {} is zero or not finite", ni + 1));
-                    mesh.normals.push_back(normal.normalized());
+                    mesh.normals.push_back((normal / length).cast<float>());
                 }
             }
             mesh.indices.push_back(it->second);

@@ -2,14 +2,17 @@
 // cases once fixed. Each case names the target that found it.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "error.h"
 #include "error_of.h"
 #include "image.h"
+#include "obj_mesh.h"
 #include "subprocess.h"
 #include "temp_dir.h"
 
@@ -81,6 +84,25 @@ TEST(PngFuzz, PngJpegAndTiffContentAreStillRead) {
         errorOf([&] { readMask(dir.at("tiff.png"), 3, 2); }).find("allowed are 8- or 16-bit PNGs"),
         std::string::npos);
     EXPECT_EQ(readMask(dir.at("a.png"), 3, 2).size(), 6u);
+}
+
+// obj_mesh_fuzz: a normal of finite floats near 1e37. Its squared length, in float, overflowed to
+// infinity and normalising gave a zero normal. Lengths are taken in double now, which also keeps
+// normals near 1e-30, whose float square was 0 and which were refused as zero.
+TEST(ObjMeshFuzz, HugeAndTinyNormalsAreNormalised) {
+    for (const char* normal : {"vn 0 7.7e37 -1", "vn 1e-30 2e-30 0"}) {
+        std::istringstream in(std::string("v 0 0 0\nv 1 0 0\nv 0 1 0\n") + normal +
+                              "\nf 1//1 2//1 3//1\n");
+        const TriangleMesh mesh = readObjMesh(in, "fuzz.obj", "test");
+        ASSERT_EQ(mesh.normals.size(), 3u) << normal;
+        for (const auto& n : mesh.normals) {
+            EXPECT_TRUE(n.allFinite()) << normal;
+            EXPECT_NEAR(n.norm(), 1, 1e-6) << normal;
+        }
+    }
+    std::istringstream zero("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 0\nf 1//1 2//1 3//1\n");
+    EXPECT_NE(errorOf([&] { readObjMesh(zero, "fuzz.obj", "test"); }).find("normal 1 is zero"),
+              std::string::npos);
 }
 
 }  // namespace
