@@ -44,6 +44,11 @@ std::string requireFile(const fs::path& dir, const std::string& name) {
 
 // The non-blank lines of a text file.
 std::vector<Line> readLines(const std::string& path) {
+    std::error_code ec;
+    const std::uintmax_t bytes = fs::file_size(path, ec);
+    if (!ec && bytes > kMaxCaptureTextBytes)
+        throw Error(fmt::format("'{}' is {} bytes (allowed: up to {} bytes)", path, bytes,
+                                kMaxCaptureTextBytes));
     std::ifstream in(path);
     if (!in) throw Error(fmt::format("cannot read '{}'", path));
     std::vector<Line> lines;

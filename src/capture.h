@@ -25,6 +25,8 @@ namespace phongfit {
 // Normals and light directions may be off unit length by this much (rounding in the files); they
 // are normalised on reading.
 inline constexpr double kUnitTolerance = 1e-3;
+// The largest text file of a capture (a line per light): far above any real capture.
+inline constexpr std::uintmax_t kMaxCaptureTextBytes = std::uintmax_t(16) << 20;
 
 struct CaptureLight {
     int number = 0;  // 1-based: the line of filenames.txt

@@ -15,6 +15,7 @@
 #include "commands.h"
 #include "error.h"
 #include "image.h"
+#include "image_limits.h"
 
 namespace phongfit {
 namespace {
@@ -30,7 +31,7 @@ cv::Mat readExposure(const std::string& path) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
         throw Error(fmt::format("cannot read image '{}': no such file", path));
-    requireLdrContent(path, "image");
+    requireLdrWithinLimits(path, "image");
     cv::Mat mat;
     try {
         mat = cv::imread(path, cv::IMREAD_UNCHANGED);

@@ -13,10 +13,10 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
-#include <string_view>
 
 #include "atomic_file.h"
 #include "error.h"
+#include "image_limits.h"
 
 namespace phongfit {
 namespace {
@@ -34,21 +34,11 @@ void requireReadableFile(const std::string& path, const char* what) {
         throw Error(fmt::format("cannot read {} '{}': no such file", what, path));
 }
 
-// A header can claim any size, and a decoded pixel takes 13 bytes: refuse before allocating.
-constexpr std::int64_t kMaxImagePixels = std::int64_t(1) << 26;
-
-void requireImageSize(const std::string& path, std::int64_t width, std::int64_t height) {
-    if (width > kMaxImagePixels || height > kMaxImagePixels || width * height > kMaxImagePixels)
-        throw Error(fmt::format("image '{}' is {}x{} pixels (allowed: up to {} pixels)", path,
-                                width, height, kMaxImagePixels));
-}
-
 Image readExr(const std::string& path) {
     try {
+        requireExrWithinLimits(path);
         Imf::InputFile file(path.c_str());
         const Imath::Box2i window = file.header().dataWindow();
-        requireImageSize(path, std::int64_t(window.max.x) - window.min.x + 1,
-                         std::int64_t(window.max.y) - window.min.y + 1);
         Image image(window.max.x - window.min.x + 1, window.max.y - window.min.y + 1);
         const Imf::ChannelList& channels = file.header().channels();
         const char* names[3] = {"R", "G", "B"};
@@ -140,7 +130,7 @@ void decodeFloatPixels(const cv::Mat& mat, Image& image) {
 }
 
 cv::Mat readWithOpenCv(const std::string& path, int flags, const char* what, bool pngOnly) {
-    requireLdrContent(path, what, pngOnly);
+    requireLdrWithinLimits(path, what, pngOnly);
     cv::Mat mat;
     try {
         mat = cv::imread(path, flags);
@@ -158,7 +148,6 @@ Image readLdr(const std::string& path, const ReadOptions& options) {
     // the pixels are oriented as viewers show them.
     const cv::Mat mat =
         readWithOpenCv(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR, "image", false);
-    requireImageSize(path, mat.cols, mat.rows);
     Image image(mat.cols, mat.rows);
     switch (mat.depth()) {
         case CV_8U:
@@ -204,29 +193,6 @@ void writeBytes(const std::filesystem::path& path, const std::vector<uchar>& byt
 }
 
 }  // namespace
-
-void requireLdrContent(const std::string& path, const char* what, bool pngOnly) {
-    char head[8] = {};
-    std::ifstream in(path, std::ios::binary);
-    in.read(head, sizeof head);
-    const std::string_view bytes(head, std::size_t(in.gcount()));
-    const auto startsWith = [&](std::string_view magic) {
-        return bytes.substr(0, magic.size()) == magic;
-    };
-    using namespace std::string_view_literals;
-    const bool png = startsWith("\x89PNG\r\n\x1a\n"sv);
-    const bool jpeg = startsWith("\xff\xd8\xff"sv);
-    const bool tiff = startsWith("II\x2a\x00"sv) || startsWith("MM\x00\x2a"sv) ||
-                      startsWith("II\x2b\x00"sv) || startsWith("MM\x00\x2b"sv);  // BigTIFF
-    if (pngOnly && !png)
-        throw Error(fmt::format(
-            "cannot read {} '{}': not a valid image file (allowed are 8- or 16-bit PNGs)", what,
-            path));
-    if (!png && !jpeg && !tiff)
-        throw Error(fmt::format(
-            "cannot read {} '{}': not a valid image file (allowed: PNG, JPEG or TIFF content)",
-            what, path));
-}
 
 Image::Image(int width, int height)
     : width(width), height(height), rgb(3 * pixelCount(), 0.0f), clipped(pixelCount(), 0) {}

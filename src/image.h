@@ -59,12 +59,6 @@ Image readImage(const std::string& path, const ReadOptions& options = {});
 // nonzero. Throws Error naming the file (and both sizes on a size mismatch).
 std::vector<std::uint8_t> readMask(const std::string& path, int width, int height);
 
-// Throws Error naming the file unless its first bytes are those of a PNG, JPEG or TIFF file (only
-// PNG when `pngOnly`). Call before handing a file to cv::imread: OpenCV picks its decoder by
-// content, not by name, and some decoders it links abort the process on a malformed file (GDCM,
-// for anything with "DICM" at byte 128). `what` names the file's role ("image", "mask").
-void requireLdrContent(const std::string& path, const char* what, bool pngOnly = false);
-
 // Float32 RGB, ZIP-compressed, atomic. Throws Error if the image holds NaN or infinity.
 void writeExr(const Image& image, const std::string& path);
 // Linear RGB times `exposure`, clamped to [0, 1], sRGB-encoded to 8 bits; atomic. Throws Error if
