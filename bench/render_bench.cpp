@@ -37,7 +37,11 @@ void BM_CornellPathTracer(benchmark::State& state) {
     state.counters["Mrays/s"] = rays / seconds / 1e6;
     state.counters["Msamples/s"] = samples / seconds / 1e6;
 }
-BENCHMARK(BM_CornellPathTracer)->Args({64, 1})->Args({64, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_CornellPathTracer)
+    ->Args({64, 1})
+    ->Args({64, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // Rays with origins uniform in the scene's bounds and uniform directions: as incoherent as path
 // tracing's secondary rays, traced with nothing but rtcIntersect1.

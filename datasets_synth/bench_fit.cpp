@@ -272,10 +272,10 @@ std::string markdownTable(const std::vector<SummaryRow>& rows) {
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2f} "
             "| {:.1f} |\n",
             s.spp, s.group, s.fits, s.failed, s.notConverged, s.unconstrained, s.withinErrors,
-            percent(s.kdMedian),
-            percent(s.kdP95), percent(s.ksMedian), percent(s.ksP95), percent(s.nMedian),
-            percent(s.nP95), std::isnan(s.medianRounds) ? "-" : fmt::format("{:g}", s.medianRounds),
-            s.medianSeconds, s.totalSeconds);
+            percent(s.kdMedian), percent(s.kdP95), percent(s.ksMedian), percent(s.ksP95),
+            percent(s.nMedian), percent(s.nP95),
+            std::isnan(s.medianRounds) ? "-" : fmt::format("{:g}", s.medianRounds), s.medianSeconds,
+            s.totalSeconds);
     return md;
 }
 

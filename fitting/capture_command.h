@@ -24,9 +24,10 @@ struct CaptureArgs {
     bool quiet = false, verbose = false;
 };
 
-// Reads and checks the capture, fits Phong on the fitted lights (with --holdout also Lambertian-only,
-// and predicts the held-out lights with both), writes OUTDIR/fit.json and compare.png, and prints
-// the recovered parameters and the hold-out errors. Throws Error (nothing written) on bad input.
+// Reads and checks the capture, fits Phong on the fitted lights (with --holdout also
+// Lambertian-only, and predicts the held-out lights with both), writes OUTDIR/fit.json and
+// compare.png, and prints the recovered parameters and the hold-out errors. Throws Error (nothing
+// written) on bad input.
 FitResult runCaptureFit(const CaptureArgs& args);
 
 // Adds --capture, --lights, --holdout and --min-cos to the fit subcommand.

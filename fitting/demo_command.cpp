@@ -59,9 +59,10 @@ void runDemo(const DemoArgs& args) {
     fit.directSpp = 32;
     fit.threads = args.threads;
     fit.quiet = args.quiet;
-    fmt::print("fitting the sphere from kd = {}, ks = {}, n = {} ({} paths per pixel and round, {} "
-               "where the sphere is seen)\n",
-               fit.kd, fit.ks, *fit.n, fit.spp, fit.directSpp);
+    fmt::print(
+        "fitting the sphere from kd = {}, ks = {}, n = {} ({} paths per pixel and round, {} "
+        "where the sphere is seen)\n",
+        fit.kd, fit.ks, *fit.n, fit.spp, fit.directSpp);
     const FitResult result = runFit(fit);
 
     const MaterialFit& m = result.materials[0];

@@ -1,21 +1,22 @@
 // phongfit fit --view SCENE.xml:IMAGE [--view ...] --material ID ... -o OUTDIR
+#include "fit_command.h"
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <optional>
 
 #include "atomic_file.h"
-#include "comparison_image.h"
 #include "capture_command.h"
 #include "commands.h"
+#include "comparison_image.h"
 #include "defines.h"
 #include "error.h"
-#include "fit_command.h"
 #include "fit_report.h"
 #include "fitter.h"
 #include "image.h"
@@ -56,7 +57,8 @@ Color3 parseColor(const std::string& text, const std::string& flag) {
     }
     if (values.size() == 1) return Color3::Constant(values[0]);
     if (values.size() == 3) return Color3(values[0], values[1], values[2]);
-    throw Error(fmt::format("{} '{}': expected one number or three separated by commas", flag, text));
+    throw Error(
+        fmt::format("{} '{}': expected one number or three separated by commas", flag, text));
 }
 
 ReadOptions readOptions(const FitArgs& args) {
@@ -104,14 +106,17 @@ View loadView(const std::string& spec, const FitArgs& args, const std::vector<ui
                                     id, fmt::join(ids, ", ")));
         }
         if (scene.bsdfs[b].type != "phong")
-            throw Error(fmt::format("{}: bsdf '{}' is '{}', not 'phong': only phong materials are "
-                                    "fitted", scene.bsdfs[b].loc.str(), id, scene.bsdfs[b].type));
+            throw Error(
+                fmt::format("{}: bsdf '{}' is '{}', not 'phong': only phong materials are "
+                            "fitted",
+                            scene.bsdfs[b].loc.str(), id, scene.bsdfs[b].type));
         v.fittedBsdfs.push_back(b);
     }
     if (directLightIsExact(scene)) {
         v.maxDepth = 2;
-        v.depthNote = "indirect bounces (one convex object under point/directional lights: direct "
-                      "light is exact, depth 2)";
+        v.depthNote =
+            "indirect bounces (one convex object under point/directional lights: direct "
+            "light is exact, depth 2)";
     } else {
         v.depthNote = "nothing (path tracing at the scene's depth)";
     }
@@ -120,7 +125,8 @@ View loadView(const std::string& spec, const FitArgs& args, const std::vector<ui
     const SensorDesc& film = scene.sensor;
     if (v.image.width != film.width || v.image.height != film.height)
         throw Error(fmt::format("{}: image is {}x{} but the film of {} is {}x{}", v.imagePath,
-                                v.image.width, v.image.height, v.scenePath, film.width, film.height));
+                                v.image.width, v.image.height, v.scenePath, film.width,
+                                film.height));
     Observation& o = v.observation;
     o.width = v.image.width;
     o.height = v.image.height;
@@ -130,9 +136,10 @@ View loadView(const std::string& spec, const FitArgs& args, const std::vector<ui
         const float* c = &o.rgb[3 * p];
         if (!std::isfinite(c[0]) || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
             if (!args.ignoreNonFinite)
-                throw Error(fmt::format("{}: pixel ({}, {}) is not finite (use --ignore-nonfinite "
-                                        "to leave such pixels out)", v.imagePath, p % o.width,
-                                        p / o.width));
+                throw Error(
+                    fmt::format("{}: pixel ({}, {}) is not finite (use --ignore-nonfinite "
+                                "to leave such pixels out)",
+                                v.imagePath, p % o.width, p / o.width));
             o.valid[p] = 0;
             o.rgb[3 * p] = o.rgb[3 * p + 1] = o.rgb[3 * p + 2] = 0;
             ++v.nonFinite;
@@ -158,7 +165,8 @@ View loadView(const std::string& spec, const FitArgs& args, const std::vector<ui
 cv::Mat comparison(const View& v, const std::vector<PhongMaterial>& fitted, double exposure,
                    const FitArgs& args) {
     Scene scene = v.renderer->scene();
-    for (std::size_t s = 0; s < fitted.size(); ++s) scene.bsdfs[v.fittedBsdfs[s]].params = fitted[s];
+    for (std::size_t s = 0; s < fitted.size(); ++s)
+        scene.bsdfs[v.fittedBsdfs[s]].params = fitted[s];
     RenderOptions options;
     options.spp = args.compareSpp;
     options.seed = args.seed + 7919;  // independent of every recording
@@ -240,9 +248,9 @@ FitResult runFit(const FitArgs& args) {
         if (args.quiet) return;
         std::string params;
         for (std::size_t s = 0; s < r.materials.size(); ++s)
-            params += fmt::format("  {}: kd {:.4g} ks {:.4g} n {:.4g}", args.materials[s],
-                                  r.materials[s].kd.mean(), r.materials[s].ks.mean(),
-                                  r.materials[s].n);
+            params +=
+                fmt::format("  {}: kd {:.4g} ks {:.4g} n {:.4g}", args.materials[s],
+                            r.materials[s].kd.mean(), r.materials[s].ks.mean(), r.materials[s].n);
         if (args.fitExposure) params += fmt::format("  exposure {:.4g}", r.exposure.value);
         fmt::print(stderr,
                    "round {}: rmse {:.5g}, {} iterations of {:.3f} s, {:.2f} s, paths {:.1f} MB, "
@@ -271,9 +279,8 @@ FitResult runFit(const FitArgs& args) {
 
     fs::create_directories(args.output);
     const fs::path dir(args.output);
-    writeAtomically(dir / "fit.json", [&](const fs::path& tmp) {
-        std::ofstream(tmp) << report.dump(2) << "\n";
-    });
+    writeAtomically(dir / "fit.json",
+                    [&](const fs::path& tmp) { std::ofstream(tmp) << report.dump(2) << "\n"; });
     std::map<std::string, PhongMaterial> byId;
     for (std::size_t s = 0; s < fitted.size(); ++s) byId[args.materials[s]] = fitted[s];
     for (std::size_t k = 0; k < views.size(); ++k) {
@@ -289,10 +296,9 @@ FitResult runFit(const FitArgs& args) {
         fmt::print("{}: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n", args.materials[s],
                    formatColor(m.kd, m.kdStd, args.grey), formatColor(m.ks, m.ksStd, args.grey),
                    m.n, m.nStd,
-                   m.unconstrained.empty()
-                       ? ""
-                       : fmt::format("  (unconstrained, held at start: {})",
-                                     fmt::join(m.unconstrained, ", ")));
+                   m.unconstrained.empty() ? ""
+                                           : fmt::format("  (unconstrained, held at start: {})",
+                                                         fmt::join(m.unconstrained, ", ")));
     }
     if (result.exposure)
         fmt::print("exposure = {:.5g} ± {:.2g}{}\n", result.exposure->value, result.exposure->std,
@@ -310,10 +316,11 @@ FitResult runFit(const FitArgs& args) {
 
 void addFitCommand(CLI::App& app) {
     auto args = std::make_shared<FitArgs>();
-    CLI::App* cmd = app.add_subcommand(
-        "fit", "recover kd, ks and n of phong materials from images of a scene");
-    cmd->add_option("--view", args->views,
-                    "SCENE.xml:IMAGE (EXR linear; PNG/JPEG decoded from sRGB); repeat for a joint fit");
+    CLI::App* cmd =
+        app.add_subcommand("fit", "recover kd, ks and n of phong materials from images of a scene");
+    cmd->add_option(
+        "--view", args->views,
+        "SCENE.xml:IMAGE (EXR linear; PNG/JPEG decoded from sRGB); repeat for a joint fit");
     cmd->add_option("--material", args->materials,
                     "with --view: id of a phong bsdf to fit; repeatable");
     cmd->add_option("-o,--output", args->output, "output directory")->required();

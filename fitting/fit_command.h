@@ -16,7 +16,7 @@ struct FitArgs {
     std::string kd, ks;  // start overrides: one number or R,G,B
     std::optional<double> n;
     int spp = 4;
-    int directSpp = 0;  // RecordOptions::directSpp
+    int directSpp = 0;    // RecordOptions::directSpp
     int compareSpp = 32;  // paths per pixel of compare.png's re-rendered column
     int rounds = 6;
     std::string loss = "l2";

@@ -53,13 +53,13 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
         for (std::size_t k = 0; k < result.rounds.size(); ++k)
             rounds[k]["exposure"] = exposureJson(result.rounds[k].exposure);
     nlohmann::json out = {{"materials", materialsJson(result.materials, materialIds)},
-            {"rmse", result.rmse},
-            {"converged", result.converged},
-            {"interrupted", result.interrupted},
-            {"rounds", rounds},
-            {"time_s", result.timeSeconds},
-            {"pixels_used", result.pixelsUsed},
-            {"pixels_left_out", result.pixelsLeftOut}};
+                          {"rmse", result.rmse},
+                          {"converged", result.converged},
+                          {"interrupted", result.interrupted},
+                          {"rounds", rounds},
+                          {"time_s", result.timeSeconds},
+                          {"pixels_used", result.pixelsUsed},
+                          {"pixels_left_out", result.pixelsLeftOut}};
     if (result.exposure) out["exposure"] = exposureJson(*result.exposure);
     return out;
 }

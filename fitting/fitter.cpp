@@ -1,8 +1,8 @@
 #include "fitter.h"
 
 #include <ceres/ceres.h>
-#include <sys/resource.h>
 #include <fmt/format.h>
+#include <sys/resource.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -216,7 +216,8 @@ Prepared prepare(const std::vector<Observation>& observations, const SetLists& s
             for (const std::vector<PathSet>* set : sets) {
                 const PathSet& ps = (*set)[view];
                 ok = ok && finite(ps.background[p]);
-                lit = lit || (ps.background[p] != 0.0f).any() || ps.pixelStart[p + 1] > ps.pixelStart[p];
+                lit = lit || (ps.background[p] != 0.0f).any() ||
+                      ps.pixelStart[p + 1] > ps.pixelStart[p];
                 for (std::uint32_t t = ps.pixelStart[p]; ok && t < ps.pixelStart[p + 1]; ++t) {
                     const PathTerm& term = ps.terms[t];
                     ok = finite(term.constant);
@@ -348,7 +349,7 @@ private:
 // The outcome of one round: the solution with its uncertainty and what the round cost.
 struct RoundOutcome {
     std::vector<MaterialFit> materials;
-    ExposureFit exposure;  // with FitOptions::fitExposure
+    ExposureFit exposure;                         // with FitOptions::fitExposure
     std::vector<std::vector<double>> naturalStd;  // per slot, in natural coordinates
     double rmse = 0;
     int iterations = 0;
@@ -1005,8 +1006,8 @@ private:
     Eigen::Vector3d residual(const PathSet& paths, const UsedPixel& u, const double* y,
                              Scratch& scratch, std::vector<Jacobian>* jacobians) const {
         const std::span<const std::uint32_t> slots = pixelSlots(u);
-        const bool exposed = exposureSlot_ >= 0 && !slots.empty() &&
-                             slots.back() == std::uint32_t(exposureSlot_);
+        const bool exposed =
+            exposureSlot_ >= 0 && !slots.empty() && slots.back() == std::uint32_t(exposureSlot_);
         const std::span<const std::uint32_t> materials = slots.first(slots.size() - exposed);
         const double s = exposure(y);
         Color3 predicted = Color3::Zero();
@@ -1093,8 +1094,8 @@ private:
                     return;
                 }
                 std::vector<Jacobian>& j = scratch.jacobians[0];
-                const Eigen::Vector3d r = residual(replayed[u.view], u, y, scratch,
-                                                   withJacobian ? &j : nullptr);
+                const Eigen::Vector3d r =
+                    residual(replayed[u.view], u, y, scratch, withJacobian ? &j : nullptr);
                 sum.squares += w * r.squaredNorm();
                 if (!withJacobian) return;
                 const std::span<const std::uint32_t> slots = pixelSlots(u);
@@ -1514,8 +1515,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 checkPathSet((*paths)[v], observations[v], int(v), int(materials));
         }
         // Later rounds start where the last one ended, near enough for the instruments.
-        RoundSolver<P> solver(observations, *sets.first, *sets.second, slotStart, options,
-                              threads, round == 0);
+        RoundSolver<P> solver(observations, *sets.first, *sets.second, slotStart, options, threads,
+                              round == 0);
         const std::vector<PhongMaterial> recorded = theta;
         RoundOutcome out = solver.solve(theta, held);
 

@@ -132,9 +132,9 @@ struct FitOptions {
 };
 
 struct FitResult {
-    std::vector<MaterialFit> materials;  // indexed by slot
+    std::vector<MaterialFit> materials;   // indexed by slot
     std::optional<ExposureFit> exposure;  // with FitOptions::fitExposure
-    double rmse = 0;                     // of the last round
+    double rmse = 0;                      // of the last round
     std::vector<FitRound> rounds;
     double timeSeconds = 0;
     // The parameters stopped moving between rounds or, on exact path sets (the same list passed

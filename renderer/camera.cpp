@@ -10,10 +10,18 @@ Camera::Camera(const SensorDesc& sensor)
     const double tanHalf = std::tan(sensor.fovDegrees * kPi / 360);
     bool alongX = true;
     switch (sensor.fovAxis) {
-        case SensorDesc::FovAxis::X: alongX = true; break;
-        case SensorDesc::FovAxis::Y: alongX = false; break;
-        case SensorDesc::FovAxis::Smaller: alongX = width_ <= height_; break;
-        case SensorDesc::FovAxis::Larger: alongX = width_ >= height_; break;
+        case SensorDesc::FovAxis::X:
+            alongX = true;
+            break;
+        case SensorDesc::FovAxis::Y:
+            alongX = false;
+            break;
+        case SensorDesc::FovAxis::Smaller:
+            alongX = width_ <= height_;
+            break;
+        case SensorDesc::FovAxis::Larger:
+            alongX = width_ >= height_;
+            break;
     }
     tanHalfX_ = alongX ? tanHalf : tanHalf * aspect;
     tanHalfY_ = alongX ? tanHalf / aspect : tanHalf;

@@ -1,5 +1,5 @@
-// Mitsuba's perspective camera: looks along camera +z, +y up, camera +x to the viewer's left, so the
-// image's +x is the viewer's right; row 0 is the top.
+// Mitsuba's perspective camera: looks along camera +z, +y up, camera +x to the viewer's left, so
+// the image's +x is the viewer's right; row 0 is the top.
 #pragma once
 
 #include "embree_scene.h"

@@ -33,8 +33,8 @@ std::optional<PhongSample<double>> DefensiveSampler::sample(const PhongMaterial&
     if (uLobe < defensive_) {
         wi = squareToCosineHemisphere(u);
     } else {
-        const auto s = mixture_->sample(samplingMaterial(m), wo,
-                                        (uLobe - defensive_) / (1 - defensive_), u);
+        const auto s =
+            mixture_->sample(samplingMaterial(m), wo, (uLobe - defensive_) / (1 - defensive_), u);
         if (!s) return std::nullopt;
         wi = s->wi;
         lobe = s->lobe;

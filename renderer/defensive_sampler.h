@@ -1,7 +1,8 @@
-// The sampler paths are recorded with at fitted vertices. Replay is unbiased for any theta only where
-// the recording pdf is positive wherever f_theta can be (DESIGN.md), so a share `defensive` of the
-// samples is cosine-weighted (covering a diffuse lobe that is 0 at theta0), and the rest picks the
-// Phong lobes with floored probabilities (so a specular lobe that is 0 at theta0 is still explored).
+// The sampler paths are recorded with at fitted vertices. Replay is unbiased for any theta only
+// where the recording pdf is positive wherever f_theta can be (DESIGN.md), so a share `defensive`
+// of the samples is cosine-weighted (covering a diffuse lobe that is 0 at theta0), and the rest
+// picks the Phong lobes with floored probabilities (so a specular lobe that is 0 at theta0 is still
+// explored).
 #pragma once
 
 #include "phong_sampler.h"

@@ -11,11 +11,12 @@ namespace {
 
 void throwOnDeviceError(RTCDevice device, const char* what) {
     const RTCError code = rtcGetDeviceError(device);
-    if (code != RTC_ERROR_NONE) throw Error(fmt::format("Embree failed while {} (error {})", what, int(code)));
+    if (code != RTC_ERROR_NONE)
+        throw Error(fmt::format("Embree failed while {} (error {})", what, int(code)));
 }
 
-// Smallest root of |o + t d - c|^2 = r^2 in (tNear, tFar), or NaN. Uses the form of Ray Tracing Gems
-// ch. 7 (the discriminant from |f - (f.d) d|) to keep precision for distant or small spheres.
+// Smallest root of |o + t d - c|^2 = r^2 in (tNear, tFar), or NaN. Uses the form of Ray Tracing
+// Gems ch. 7 (the discriminant from |f - (f.d) d|) to keep precision for distant or small spheres.
 double intersectSphere(const Vec3d& o, const Vec3d& d, const Vec3d& c, double r, double tNear,
                        double tFar) {
     const Vec3d f = o - c;
@@ -57,7 +58,8 @@ void analyticBounds(const RTCBoundsFunctionArguments* args) {
         hi = s.center.array() + s.radius;
     } else {
         lo = hi = s.toWorld * Vec3d(1, 0, 0);
-        for (const auto& corner : {Vec3d(-1, -1, 0), Vec3d(1, -1, 0), Vec3d(-1, 1, 0), Vec3d(1, 1, 0)}) {
+        for (const auto& corner :
+             {Vec3d(-1, -1, 0), Vec3d(1, -1, 0), Vec3d(-1, 1, 0), Vec3d(1, 1, 0)}) {
             const Vec3d p = s.toWorld * corner;
             lo = lo.cwiseMin(p);
             hi = hi.cwiseMax(p);
@@ -66,8 +68,10 @@ void analyticBounds(const RTCBoundsFunctionArguments* args) {
     // Round outwards so float bounds contain the double-precision shape.
     const double pad = 1e-6 * (1 + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff()));
     RTCBounds* b = args->bounds_o;
-    b->lower_x = float(lo.x() - pad), b->lower_y = float(lo.y() - pad), b->lower_z = float(lo.z() - pad);
-    b->upper_x = float(hi.x() + pad), b->upper_y = float(hi.y() + pad), b->upper_z = float(hi.z() + pad);
+    b->lower_x = float(lo.x() - pad), b->lower_y = float(lo.y() - pad),
+    b->lower_z = float(lo.z() - pad);
+    b->upper_x = float(hi.x() + pad), b->upper_y = float(hi.y() + pad),
+    b->upper_z = float(hi.z() + pad);
 }
 
 // Only rtcIntersect1/rtcOccluded1 are used, so N is always 1.
@@ -92,7 +96,8 @@ void analyticOccluded(const RTCOccludedFunctionNArguments* args) {
     if (!args->valid[0]) return;
     const auto& s = *static_cast<const EmbreeScene::AnalyticShape*>(args->geometryUserPtr);
     auto* ray = reinterpret_cast<RTCRay*>(args->ray);
-    if (!std::isnan(intersectAnalytic(s, *ray))) ray->tfar = -std::numeric_limits<float>::infinity();
+    if (!std::isnan(intersectAnalytic(s, *ray)))
+        ray->tfar = -std::numeric_limits<float>::infinity();
 }
 
 }  // namespace
@@ -136,17 +141,17 @@ EmbreeScene::EmbreeScene(const Scene& scene) : desc_(scene) {
         } else {
             const TriangleMesh& mesh = shape.mesh;
             geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-            auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-                geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                mesh.positions.size()));
+            auto* v = static_cast<float*>(
+                rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                        3 * sizeof(float), mesh.positions.size()));
             for (std::size_t k = 0; k < mesh.positions.size(); ++k) {
                 for (int c = 0; c < 3; ++c) v[3 * k + c] = mesh.positions[k][c];
                 boundsMin_ = boundsMin_.cwiseMin(mesh.positions[k].cast<double>());
                 boundsMax_ = boundsMax_.cwiseMax(mesh.positions[k].cast<double>());
             }
-            auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-                geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                mesh.indices.size() / 3));
+            auto* idx = static_cast<unsigned*>(
+                rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                        3 * sizeof(unsigned), mesh.indices.size() / 3));
             std::copy(mesh.indices.begin(), mesh.indices.end(), idx);
         }
         rtcCommitGeometry(geom);
@@ -168,7 +173,8 @@ EmbreeScene::~EmbreeScene() {
 namespace {
 RTCRay toRtcRay(const Ray& ray) {
     RTCRay r;
-    r.org_x = float(ray.origin.x()), r.org_y = float(ray.origin.y()), r.org_z = float(ray.origin.z());
+    r.org_x = float(ray.origin.x()), r.org_y = float(ray.origin.y()),
+    r.org_z = float(ray.origin.z());
     r.dir_x = float(ray.dir.x()), r.dir_y = float(ray.dir.y()), r.dir_z = float(ray.dir.z());
     r.tnear = 0;
     r.tfar = std::isfinite(ray.tMax) ? float(ray.tMax) : std::numeric_limits<float>::infinity();
@@ -216,7 +222,8 @@ std::optional<Hit> EmbreeScene::intersect(const Ray& ray) const {
         const std::uint32_t* tri = &mesh.indices[3 * rh.hit.primID];
         const double u = rh.hit.u, v = rh.hit.v;
         const Vec3d n = (1 - u - v) * mesh.normals[tri[0]].cast<double>() +
-                        u * mesh.normals[tri[1]].cast<double>() + v * mesh.normals[tri[2]].cast<double>();
+                        u * mesh.normals[tri[1]].cast<double>() +
+                        v * mesh.normals[tri[2]].cast<double>();
         hit.ns = n.normalized();
         // Interpolated normals define the front: keep ng on their side.
         if (hit.ns.dot(hit.ng) < 0) hit.ng = -hit.ng;

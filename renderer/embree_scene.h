@@ -51,7 +51,8 @@ public:
         bool sphere = true;
         Vec3d center = Vec3d::Zero();  // sphere
         double radius = 1;
-        Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();  // disk: unit disk at z = 0, normal +z
+        Eigen::Affine3d toWorld =
+            Eigen::Affine3d::Identity();  // disk: unit disk at z = 0, normal +z
         Eigen::Affine3d toLocal = Eigen::Affine3d::Identity();
         Vec3d normal = Vec3d::UnitZ();  // disk: world-space unit normal
     };

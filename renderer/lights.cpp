@@ -79,7 +79,8 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
                 const TriangleMesh& m = shape.mesh;
                 for (std::size_t t = 0; t < m.indices.size() / 3; ++t) {
                     const Vec3d v0 = triangleVertex(m, t, 0);
-                    const Vec3d e1 = triangleVertex(m, t, 1) - v0, e2 = triangleVertex(m, t, 2) - v0;
+                    const Vec3d e1 = triangleVertex(m, t, 1) - v0,
+                                e2 = triangleVertex(m, t, 2) - v0;
                     const Vec3d n = e1.cross(e2);
                     l.area += 0.5 * n.norm();
                     l.triangleCdf.push_back(l.area);
@@ -105,10 +106,12 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
             return LightSample{d / dist, dist, l.value / dist2, 1, true};
         }
         case Light::Type::Directional:
-            return LightSample{-l.direction, std::numeric_limits<double>::infinity(), l.value, 1, true};
+            return LightSample{-l.direction, std::numeric_limits<double>::infinity(), l.value, 1,
+                               true};
         case Light::Type::Environment:
             return LightSample{squareToUniformSphere(u.x(), u.y()),
-                               std::numeric_limits<double>::infinity(), l.value, kEnvironmentPdf, false};
+                               std::numeric_limits<double>::infinity(), l.value, kEnvironmentPdf,
+                               false};
         default:
             break;
     }
@@ -125,7 +128,8 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
     } else {
         const double target = u.z() * l.area;
         const auto it = std::upper_bound(l.triangleCdf.begin(), l.triangleCdf.end(), target);
-        const std::size_t t = std::min<std::size_t>(it - l.triangleCdf.begin(), l.triangleCdf.size() - 1);
+        const std::size_t t =
+            std::min<std::size_t>(it - l.triangleCdf.begin(), l.triangleCdf.size() - 1);
         const auto& [v0, e1, e2, normal] = l.triangles[t];
         const double su = std::sqrt(u.x());
         q = v0 + su * (1 - u.y()) * e1 + su * u.y() * e2;

@@ -12,10 +12,10 @@
 namespace phongfit {
 
 struct LightSample {
-    Vec3d wi;            // unit, from the shading point towards the light
-    double distance;     // to the light point; infinity for directional and environment
-    Color3 radiance;     // arriving radiance (delta lights: irradiance-equivalent, I / d^2 or E)
-    double pdf;          // solid-angle density; 1 for delta lights
+    Vec3d wi;         // unit, from the shading point towards the light
+    double distance;  // to the light point; infinity for directional and environment
+    Color3 radiance;  // arriving radiance (delta lights: irradiance-equivalent, I / d^2 or E)
+    double pdf;       // solid-angle density; 1 for delta lights
     bool delta;
 };
 

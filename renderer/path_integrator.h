@@ -22,7 +22,7 @@ namespace phongfit {
 struct IntegratorSettings {
     int maxDepth = -1;  // -1: unbounded
     int rrDepth = 5;
-    bool mis = true;    // false: area and environment light only through BRDF sampling
+    bool mis = true;  // false: area and environment light only through BRDF sampling
 };
 
 class PathIntegrator {
@@ -37,8 +37,8 @@ public:
     // Random dimensions 0 and 1 are the caller's (the position in the pixel).
     static constexpr std::uint32_t kFirstDimension = 2;
 
-    // Traces one camera path. sink.add(const Color3& constant, std::span<const PathVertex>) gets every
-    // contribution; `rays` counts the rays traced.
+    // Traces one camera path. sink.add(const Color3& constant, std::span<const PathVertex>) gets
+    // every contribution; `rays` counts the rays traced.
     template <typename Sink>
     void trace(const Ray& cameraRay, const CounterRng& rng, std::uint64_t sample, Sink& sink,
                std::uint64_t& rays) const;

@@ -15,7 +15,8 @@ inline double powerHeuristic(double pdfA, double pdfB) {
 template <typename Sink>
 void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uint64_t sample,
                            Sink& sink, std::uint64_t& rays) const {
-    // Fitted vertices of the current path prefix (a fixed small capacity keeps this allocation-free).
+    // Fitted vertices of the current path prefix (a fixed small capacity keeps this
+    // allocation-free).
     constexpr int kMaxFittedVertices = 64;
     PathVertex prefix[kMaxFittedVertices + 1];
     int prefixSize = 0;
@@ -50,7 +51,8 @@ void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uin
                 double w = 1;
                 if (depth > 1 && settings_.mis)
                     w = detail::powerHeuristic(
-                        bsdfPdf, lights_.pdfArea(lights_.lightOfShape(hit->shape), ray.origin, *hit));
+                        bsdfPdf,
+                        lights_.pdfArea(lights_.lightOfShape(hit->shape), ray.origin, *hit));
                 sink.add(constant * le * w, std::span<const PathVertex>(prefix, prefixSize));
             }
         }
@@ -68,8 +70,9 @@ void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uin
         // Next-event estimation on every light.
         for (int l = 0; l < lights_.size(); ++l) {
             const std::uint32_t d = dim + 4 + 3 * std::uint32_t(l);
-            const auto ls = lights_.sample(
-                l, hit->p, Vec3d(rng.uniform(sample, d), rng.uniform(sample, d + 1), rng.uniform(sample, d + 2)));
+            const auto ls = lights_.sample(l, hit->p,
+                                           Vec3d(rng.uniform(sample, d), rng.uniform(sample, d + 1),
+                                                 rng.uniform(sample, d + 2)));
             if (!ls || (!ls->delta && !settings_.mis)) continue;
             const Vec3d wi = frame.toLocal(ls->wi);
             if (!(wi.z() > 0) || !(hit->ng.dot(ls->wi) > 0)) continue;
@@ -94,8 +97,9 @@ void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uin
         }
 
         // Continue the path by sampling the BRDF.
-        const auto s = sampler.sample(m, wo, rng.uniform(sample, dim),
-                                      Vec2d(rng.uniform(sample, dim + 1), rng.uniform(sample, dim + 2)));
+        const auto s =
+            sampler.sample(m, wo, rng.uniform(sample, dim),
+                           Vec2d(rng.uniform(sample, dim + 1), rng.uniform(sample, dim + 2)));
         if (!s) return;
         const Vec3d wiWorld = frame.toWorld(s->wi);
         if (!(hit->ng.dot(wiWorld) > 0)) return;

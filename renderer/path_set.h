@@ -29,7 +29,7 @@ struct PathTerm {
 struct PathSet {
     int width = 0, height = 0;
     int spp = 0;
-    int slots = 0;                        // number of fitted materials
+    int slots = 0;                         // number of fitted materials
     std::vector<Color<float>> background;  // per pixel: the part that does not depend on theta
     std::vector<PathTerm> terms;           // sorted by pixel
     std::vector<PathVertex> vertices;

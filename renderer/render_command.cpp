@@ -1,9 +1,9 @@
 // phongfit render SCENE.xml -o OUT.exr ...
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "atomic_file.h"
@@ -42,8 +42,8 @@ Image toImage(const RenderResult& r) {
 void requireOutputDirectory(const std::string& path) {
     const std::filesystem::path parent = std::filesystem::absolute(path).parent_path();
     if (!std::filesystem::is_directory(parent))
-        throw Error(fmt::format("cannot write '{}': directory '{}' does not exist", path,
-                                parent.string()));
+        throw Error(
+            fmt::format("cannot write '{}': directory '{}' does not exist", path, parent.string()));
 }
 
 void runRender(const RenderArgs& args) {
@@ -57,8 +57,8 @@ void runRender(const RenderArgs& args) {
     if (!args.png.empty()) writePng(image, args.png);
 
     const RenderStats& s = result.stats;
-    const int threads = args.options.threads > 0 ? args.options.threads
-                                                 : int(std::thread::hardware_concurrency());
+    const int threads =
+        args.options.threads > 0 ? args.options.threads : int(std::thread::hardware_concurrency());
     nlohmann::json sidecar = {
         {"scene", args.scene},
         {"defines", parseDefines(args.defines)},
@@ -95,10 +95,10 @@ void runRender(const RenderArgs& args) {
                s.samples / s.seconds / 1e6, args.output);
     if (s.nonFinite > 0) {
         const NonFiniteSample& n = s.nonFiniteFirst.front();
-        fmt::print("warning: {} samples had a non-finite value and were left out (the first at "
-                   "pixel ({}, {}), path depth {}, material '{}'; all in {}.json)\n",
-                   s.nonFinite, n.x, n.y, n.depth, materialName(renderer.scene(), n.bsdf),
-                   args.output);
+        fmt::print(
+            "warning: {} samples had a non-finite value and were left out (the first at "
+            "pixel ({}, {}), path depth {}, material '{}'; all in {}.json)\n",
+            s.nonFinite, n.x, n.y, n.depth, materialName(renderer.scene(), n.bsdf), args.output);
     }
     if (s.interrupted)
         fmt::print("interrupted: the image holds {} of {} samples ({:.1f}%)\n", s.samples,

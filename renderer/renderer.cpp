@@ -33,7 +33,8 @@ std::vector<Tile> makeTiles(int width, int height) {
     std::vector<Tile> tiles;
     for (int y = 0; y < height; y += kTileSize)
         for (int x = 0; x < width; x += kTileSize)
-            tiles.push_back({x, y, std::min(x + kTileSize, width), std::min(y + kTileSize, height)});
+            tiles.push_back(
+                {x, y, std::min(x + kTileSize, width), std::min(y + kTileSize, height)});
     return tiles;
 }
 
@@ -136,41 +137,42 @@ RenderResult Renderer::render(const RenderOptions& options) const {
         const int s1 = std::min(spp, s0 + passSize);
         const bool interruptible = s0 > 0;
         runInArena(options.threads, [&] {
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
-                std::uint64_t& rayCount = rays.local();
-                for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                    if (interruptible && interruptRequested()) return;
-                    const Tile& tile = tiles[t];
-                    for (int y = tile.y0; y < tile.y1; ++y)
-                        for (int x = tile.x0; x < tile.x1; ++x) {
-                            const std::uint32_t p = pixelIndex(x, y, width);
-                            const CounterRng rng(options.seed, p);
-                            for (int s = s0; s < s1; ++s) {
-                                const Vec2d film = filmPosition(scene_.sensor, x, y, rng.uniform(s, 0),
-                                                                rng.uniform(s, 1));
-                                RadianceSink sink;
-                                integrator.trace(camera_.generateRay(film.x(), film.y()), rng, s,
-                                                 sink, rayCount);
-                                if (!representable(sink.sum)) {
-                                    ++nonFinite.local();
-                                    NonFiniteSample where{x, y, s};
-                                    DiagnosingSink diagnosis{where};
-                                    std::uint64_t replayRays = 0;
+            tbb::parallel_for(
+                tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
+                    std::uint64_t& rayCount = rays.local();
+                    for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                        if (interruptible && interruptRequested()) return;
+                        const Tile& tile = tiles[t];
+                        for (int y = tile.y0; y < tile.y1; ++y)
+                            for (int x = tile.x0; x < tile.x1; ++x) {
+                                const std::uint32_t p = pixelIndex(x, y, width);
+                                const CounterRng rng(options.seed, p);
+                                for (int s = s0; s < s1; ++s) {
+                                    const Vec2d film = filmPosition(
+                                        scene_.sensor, x, y, rng.uniform(s, 0), rng.uniform(s, 1));
+                                    RadianceSink sink;
                                     integrator.trace(camera_.generateRay(film.x(), film.y()), rng,
-                                                     s, diagnosis, replayRays);
-                                    keepFirst(nonFiniteFirst.local(), where);
-                                    continue;
+                                                     s, sink, rayCount);
+                                    if (!representable(sink.sum)) {
+                                        ++nonFinite.local();
+                                        NonFiniteSample where{x, y, s};
+                                        DiagnosingSink diagnosis{where};
+                                        std::uint64_t replayRays = 0;
+                                        integrator.trace(camera_.generateRay(film.x(), film.y()),
+                                                         rng, s, diagnosis, replayRays);
+                                        keepFirst(nonFiniteFirst.local(), where);
+                                        continue;
+                                    }
+                                    for (int c = 0; c < 3; ++c) {
+                                        sum[3 * p + c] += sink.sum[c];
+                                        sumSq[3 * p + c] += sink.sum[c] * sink.sum[c];
+                                    }
+                                    ++count[p];
                                 }
-                                for (int c = 0; c < 3; ++c) {
-                                    sum[3 * p + c] += sink.sum[c];
-                                    sumSq[3 * p + c] += sink.sum[c] * sink.sum[c];
-                                }
-                                ++count[p];
                             }
-                        }
-                    progress.advance(std::uint64_t(s1 - s0) * tile.pixels());
-                }
-            });
+                        progress.advance(std::uint64_t(s1 - s0) * tile.pixels());
+                    }
+                });
         });
         interrupted = interruptRequested();
     }
@@ -186,7 +188,8 @@ RenderResult Renderer::render(const RenderOptions& options) const {
         const double n = count[p];
         for (int c = 0; c < 3; ++c) {
             const double mean = n > 0 ? sum[3 * p + c] / n : 0;
-            const double var = n > 1 ? std::max(0.0, sumSq[3 * p + c] / n - mean * mean) / (n - 1) : 0;
+            const double var =
+                n > 1 ? std::max(0.0, sumSq[3 * p + c] / n - mean * mean) / (n - 1) : 0;
             result.rgb[3 * p + c] = float(mean);
             result.variance[3 * p + c] = float(var);
         }
@@ -254,8 +257,9 @@ double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
         const Vec2d film = filmPosition(sensor, x, y, rng.uniform(0, 0), rng.uniform(0, 1));
         integrator.trace(camera.generateRay(film.x(), film.y()), rng, 0, sink, rays);
     }
-    const double perSample = (double(sink.terms) * sizeof(PathTerm) +
-                              double(sink.vertices) * sizeof(PathVertex)) / double(pilots);
+    const double perSample =
+        (double(sink.terms) * sizeof(PathTerm) + double(sink.vertices) * sizeof(PathVertex)) /
+        double(pilots);
     const double perPixel = 2 * sizeof(Color<float>) + 3 * sizeof(std::uint32_t) + 8;
     return double(pixels) * (perPixel + 2 * perSample * spp);
 }
@@ -274,9 +278,9 @@ PathSet Renderer::record(const RecordOptions& options) const {
     }
     const auto sampler = makePhongSampler<double>("lafortune");
     const DefensiveSampler defensive(options.defensive);
-    const PathIntegrator integrator(scene_, *geometry_, *lights_, materials, slots, *sampler,
-                                    defensive,
-                                    {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, true});
+    const PathIntegrator integrator(
+        scene_, *geometry_, *lights_, materials, slots, *sampler, defensive,
+        {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, true});
 
     // Refuse what would exhaust memory before trying: half the machine's is the budget.
     const double bytes = recordingBytes(integrator, camera_, scene_.sensor, options.seed,
@@ -300,44 +304,46 @@ PathSet Renderer::record(const RecordOptions& options) const {
         return bsdf >= 0 && slots[bsdf] >= 0 ? options.directSpp : options.spp;
     };
     runInArena(options.threads, [&] {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
-            std::uint64_t rays = 0;
-            for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                const Tile& tile = tiles[t];
-                TileRecord& rec = records[t];
-                rec.termStart.push_back(0);
-                for (int y = tile.y0; y < tile.y1; ++y)
-                    for (int x = tile.x0; x < tile.x1; ++x) {
-                        const std::uint32_t p = pixelIndex(x, y, width);
-                        const CounterRng rng(options.seed, p);
-                        Color3 background = Color3::Zero();
-                        const int paths = pathsAt(x, y);
-                        const double scale = 1.0 / paths;
-                        for (int s = 0; s < paths; ++s) {
-                            const Vec2d film =
-                                filmPosition(scene_.sensor, x, y, rng.uniform(s, 0), rng.uniform(s, 1));
-                            const std::size_t termsBefore = rec.terms.size();
-                            const std::size_t verticesBefore = rec.vertices.size();
-                            const Color3 backgroundBefore = background;
-                            RecordingSink sink{rec, background, scale};
-                            integrator.trace(camera_.generateRay(film.x(), film.y()), rng, s, sink, rays);
-                            // A non-finite sample is dropped whole, as in rendering.
-                            bool finite = background.allFinite();
-                            for (std::size_t k = termsBefore; k < rec.terms.size(); ++k)
-                                finite = finite && rec.terms[k].constant.allFinite();
-                            if (!finite) {
-                                rec.terms.resize(termsBefore);
-                                rec.vertices.resize(verticesBefore);
-                                background = backgroundBefore;
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
+                std::uint64_t rays = 0;
+                for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                    const Tile& tile = tiles[t];
+                    TileRecord& rec = records[t];
+                    rec.termStart.push_back(0);
+                    for (int y = tile.y0; y < tile.y1; ++y)
+                        for (int x = tile.x0; x < tile.x1; ++x) {
+                            const std::uint32_t p = pixelIndex(x, y, width);
+                            const CounterRng rng(options.seed, p);
+                            Color3 background = Color3::Zero();
+                            const int paths = pathsAt(x, y);
+                            const double scale = 1.0 / paths;
+                            for (int s = 0; s < paths; ++s) {
+                                const Vec2d film = filmPosition(
+                                    scene_.sensor, x, y, rng.uniform(s, 0), rng.uniform(s, 1));
+                                const std::size_t termsBefore = rec.terms.size();
+                                const std::size_t verticesBefore = rec.vertices.size();
+                                const Color3 backgroundBefore = background;
+                                RecordingSink sink{rec, background, scale};
+                                integrator.trace(camera_.generateRay(film.x(), film.y()), rng, s,
+                                                 sink, rays);
+                                // A non-finite sample is dropped whole, as in rendering.
+                                bool finite = background.allFinite();
+                                for (std::size_t k = termsBefore; k < rec.terms.size(); ++k)
+                                    finite = finite && rec.terms[k].constant.allFinite();
+                                if (!finite) {
+                                    rec.terms.resize(termsBefore);
+                                    rec.vertices.resize(verticesBefore);
+                                    background = backgroundBefore;
+                                }
                             }
+                            for (std::size_t k = rec.termStart.back(); k < rec.terms.size(); ++k)
+                                rec.terms[k].pixel = p;
+                            rec.background.push_back(background.cast<float>());
+                            rec.termStart.push_back(std::uint32_t(rec.terms.size()));
                         }
-                        for (std::size_t k = rec.termStart.back(); k < rec.terms.size(); ++k)
-                            rec.terms[k].pixel = p;
-                        rec.background.push_back(background.cast<float>());
-                        rec.termStart.push_back(std::uint32_t(rec.terms.size()));
-                    }
-            }
-        });
+                }
+            });
     });
 
     // Assemble in global pixel order: terms of a pixel are contiguous, pixels ascending.
@@ -349,12 +355,15 @@ PathSet Renderer::record(const RecordOptions& options) const {
     const std::size_t pixels = std::size_t(width) * height;
     set.background.resize(pixels);
     set.pixelStart.assign(pixels + 1, 0);
-    struct Where { std::uint32_t tile, local; };
+    struct Where {
+        std::uint32_t tile, local;
+    };
     std::vector<Where> where(pixels);
     for (std::size_t t = 0; t < tiles.size(); ++t) {
         std::uint32_t local = 0;
         for (int y = tiles[t].y0; y < tiles[t].y1; ++y)
-            for (int x = tiles[t].x0; x < tiles[t].x1; ++x) where[pixelIndex(x, y, width)] = {std::uint32_t(t), local++};
+            for (int x = tiles[t].x0; x < tiles[t].x1; ++x)
+                where[pixelIndex(x, y, width)] = {std::uint32_t(t), local++};
     }
     for (std::size_t p = 0; p < pixels; ++p) {
         const TileRecord& rec = records[where[p].tile];

@@ -1,6 +1,6 @@
 // Renders a scene description to an image, or records its paths for the fitter. Builds the Embree
-// scene once; tiles run on TBB; every random number is keyed by (seed, pixel, sample, dimension), so
-// an image is bit-identical for a seed whatever the thread count.
+// scene once; tiles run on TBB; every random number is keyed by (seed, pixel, sample, dimension),
+// so an image is bit-identical for a seed whatever the thread count.
 #pragma once
 
 #include <cstdint>
@@ -16,13 +16,13 @@
 namespace phongfit {
 
 struct RenderOptions {
-    int spp = 0;           // 0: the scene's sampleCount
+    int spp = 0;  // 0: the scene's sampleCount
     std::uint64_t seed = 0;
-    int threads = 0;       // 0: all hardware threads
+    int threads = 0;  // 0: all hardware threads
     std::string sampler = "lafortune";
-    int maxDepth = -2;     // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
+    int maxDepth = -2;  // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
     bool mis = true;
-    bool quiet = false;    // no progress output
+    bool quiet = false;  // no progress output
 };
 
 // A sample dropped for a non-finite value, and where on its path the value arose.
@@ -59,9 +59,9 @@ struct RecordOptions {
     std::uint64_t seed = 0;
     int threads = 0;
     int maxDepth = -2;
-    std::vector<int> fittedBsdfs;           // scene bsdf indices, in slot order
-    std::vector<PhongMaterial> theta0;      // per slot: the parameters to record at
-    double defensive = 0.2;                 // share of cosine sampling at fitted vertices
+    std::vector<int> fittedBsdfs;       // scene bsdf indices, in slot order
+    std::vector<PhongMaterial> theta0;  // per slot: the parameters to record at
+    double defensive = 0.2;             // share of cosine sampling at fitted vertices
 };
 
 class Renderer {

@@ -7,7 +7,8 @@
 #include "error.h"
 
 int main(int argc, char** argv) {
-    CLI::App app{"phongfit: recover Modified Phong BRDF parameters from images, and render with them"};
+    CLI::App app{
+        "phongfit: recover Modified Phong BRDF parameters from images, and render with them"};
     app.require_subcommand(1);
     phongfit::addCommands(app);
     try {

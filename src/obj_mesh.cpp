@@ -34,8 +34,8 @@ TriangleMesh loadObjMesh(const std::string& path, const std::string& context) {
                                 path, bytes >> 20, kMaxObjBytes >> 20));
     std::ifstream in(path);
     if (!in)
-        throw Error(fmt::format("{}: cannot open OBJ file '{}': {}", context, path,
-                                std::strerror(errno)));
+        throw Error(
+            fmt::format("{}: cannot open OBJ file '{}': {}", context, path, std::strerror(errno)));
     return readObjMesh(in, path, context);
 }
 

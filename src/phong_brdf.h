@@ -3,10 +3,10 @@
 //
 //     f(wi, wo) = kd / pi + ks * (n + 2) / (2 pi) * cos^n(alpha)
 //
-// Conventions (as pbrt-v4 and the Phong importance-sampling note): local shading frame, normal on +z;
-// `wo` is given (towards the viewer), `wi` is sampled (towards the light), both point away from the
-// surface; f excludes the foreshortening cos(theta_i); alpha is the angle between wi and the mirror
-// direction of wo, and cos(alpha) is clamped at 0.
+// Conventions (as pbrt-v4 and the Phong importance-sampling note): local shading frame, normal on
+// +z; `wo` is given (towards the viewer), `wi` is sampled (towards the light), both point away from
+// the surface; f excludes the foreshortening cos(theta_i); alpha is the angle between wi and the
+// mirror direction of wo, and cos(alpha) is clamped at 0.
 //
 // Templated on the parameter type T (float, double, ceres::Jet) and the direction type D (float,
 // double), so the fitter differentiates exactly the model the renderer samples.
@@ -47,8 +47,8 @@ D logCosAlpha(const Vec3<D>& wi, const Vec3<D>& wo) {
     return h < D(1) ? std::log1p(-h) : -std::numeric_limits<D>::infinity();
 }
 
-// cos^n(alpha) = exp(n log cos alpha): finite with finite derivatives for n in [0, 1e6] and any alpha
-// (ceres::pow has non-finite derivatives at a zero base).
+// cos^n(alpha) = exp(n log cos alpha): finite with finite derivatives for n in [0, 1e6] and any
+// alpha (ceres::pow has non-finite derivatives at a zero base).
 template <typename T, typename D>
 T phongPower(const T& n, D logCos) {
     using std::exp;

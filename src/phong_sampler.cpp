@@ -53,9 +53,8 @@ public:
         const T diffuse = pd * cosineHemispherePdf(wi);
         if (!(ps > T(0))) return diffuse;
         const T h = oneMinusCosAlpha(wi, wo);
-        const T specular = warp_ == SpecularWarp::PhongLobe
-                               ? phongLobePdf(h, m.n)
-                               : uniformCapPdf(h, phongCapHeight(m.n));
+        const T specular = warp_ == SpecularWarp::PhongLobe ? phongLobePdf(h, m.n)
+                                                            : uniformCapPdf(h, phongCapHeight(m.n));
         return diffuse + ps * specular;
     }
 

@@ -1,9 +1,8 @@
 // Importance samplers for the Modified Phong BRDF, selectable by name (DESIGN.md):
-//   lafortune  u < kd: cosine lobe; kd <= u < kd + ks: Phong lobe around the mirror direction; else absorb
-//   mixture    always a lobe, chosen in proportion to kd and ks (Mitsuba 0.5)
-//   cap        as lafortune, the specular lobe uniform over the cap cos(theta) >= 1e-10^(1 / (n + 1))
-//   cosine     cosine-weighted hemisphere
-//   uniform    uniform hemisphere
+//   lafortune  u < kd: cosine lobe; kd <= u < kd + ks: Phong lobe around the mirror direction; else
+//   absorb mixture    always a lobe, chosen in proportion to kd and ks (Mitsuba 0.5) cap        as
+//   lafortune, the specular lobe uniform over the cap cos(theta) >= 1e-10^(1 / (n + 1)) cosine
+//   cosine-weighted hemisphere uniform    uniform hemisphere
 // kd and ks in the lobe choice are the means over the RGB channels.
 //
 // Random numbers go in explicitly (1D for the lobe choice, 2D for the direction), so sampling is a

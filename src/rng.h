@@ -1,5 +1,5 @@
-// Counter-based random numbers: a value is a pure function of (seed, stream, sample, dimension), so any
-// pixel sample can be regenerated on its own, in any order, on any thread (as pbrt-v4's
+// Counter-based random numbers: a value is a pure function of (seed, stream, sample, dimension), so
+// any pixel sample can be regenerated on its own, in any order, on any thread (as pbrt-v4's
 // IndependentSampler). An image is then bit-identical for a seed whatever the thread count, and a
 // recorded path can be replayed.
 #pragma once

@@ -47,16 +47,16 @@ struct ShapeDesc {
     Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
     // Rectangle, cube and obj: world-space triangles (exact: these shapes are flat-faced).
     TriangleMesh mesh;
-    int bsdf = -1;                         // index into Scene::bsdfs
-    std::optional<Color3> areaRadiance;    // nested area emitter: emits from the front side
+    int bsdf = -1;                       // index into Scene::bsdfs
+    std::optional<Color3> areaRadiance;  // nested area emitter: emits from the front side
     SourceLocation loc;
 };
 
 struct EmitterDesc {
     enum class Type { Point, Directional, Constant };
     Type type = Type::Point;
-    Vec3d position = Vec3d::Zero();       // point
-    Vec3d direction = Vec3d(0, 0, 1);     // directional: unit direction of travel
+    Vec3d position = Vec3d::Zero();    // point
+    Vec3d direction = Vec3d(0, 0, 1);  // directional: unit direction of travel
     // Point: intensity (W/sr); directional: irradiance on a surface facing the light;
     // constant: radiance.
     Color3 value = Color3::Ones();

@@ -86,7 +86,7 @@ std::optional<int> toInteger(std::string_view s) {
 
 // Byte offset -> 1-based line number.
 class LineIndex {
-  public:
+public:
     explicit LineIndex(const std::string& text) {
         starts_.push_back(0);
         for (std::size_t i = 0; i < text.size(); ++i)
@@ -97,7 +97,7 @@ class LineIndex {
         return int(std::upper_bound(starts_.begin(), starts_.end(), at) - starts_.begin());
     }
 
-  private:
+private:
     std::vector<std::size_t> starts_;
 };
 
@@ -113,7 +113,7 @@ std::string describe(pugi::xml_node n) {
 
 // File name, line numbers and variables: everything an element needs to be read and blamed.
 class Context {
-  public:
+public:
     Context(std::string file, const std::string& text) : file_(std::move(file)), lines_(text) {}
 
     const std::string& file() const { return file_; }
@@ -205,7 +205,7 @@ class Context {
 
     Vars vars;
 
-  private:
+private:
     std::string file_;
     LineIndex lines_;
 };
@@ -300,7 +300,7 @@ struct Param {
 
 // The parameters of one object. Getters name what the object accepts; finish() rejects the rest.
 class Params {
-  public:
+public:
     Params(const Context& ctx, pugi::xml_node owner) : ctx_(ctx), owner_(owner) {}
 
     void add(pugi::xml_node n) {
@@ -386,7 +386,7 @@ class Params {
                         asked_.empty() ? "none" : fmt::format("{}", fmt::join(asked_, ", "))));
     }
 
-  private:
+private:
     template <typename T>
     std::optional<T> get(const std::string& name, Names tags) {
         asked_.push_back(name);
@@ -510,7 +510,7 @@ double worldExtent(const ShapeDesc& shape) {
 }
 
 class Parser {
-  public:
+public:
     Parser(const std::string& text, const std::string& file, const Vars& defines,
            std::string baseDir)
         : ctx_(file, text), baseDir_(std::move(baseDir)) {
@@ -564,7 +564,7 @@ class Parser {
         return std::move(scene_);
     }
 
-  private:
+private:
     // Sorts an object's children into parameters and nested objects (tags in `nestedAllowed`).
     Params collect(pugi::xml_node n, Names nestedAllowed, std::vector<pugi::xml_node>& nested) {
         Params params(ctx_, n);
@@ -964,9 +964,10 @@ std::string expandVariables(const std::string& value, const Vars& variables,
                             "name=\"{}\" value=\"...\"/> or -D {}=...)",
                             where, name, name, name));
         if (out.size() + it->second.size() > kMaxExpandedLength)
-            throw Error(fmt::format("{}: the variables in '{}' expand to over 1 MiB of text "
-                                    "(allowed: up to {} characters)",
-                                    where, value.substr(0, 40), kMaxExpandedLength));
+            throw Error(
+                fmt::format("{}: the variables in '{}' expand to over 1 MiB of text "
+                            "(allowed: up to {} characters)",
+                            where, value.substr(0, 40), kMaxExpandedLength));
         out += it->second;
         i = j;
     }

@@ -18,7 +18,6 @@ namespace fs = std::filesystem;
 
 class AtomicFileTest : public ::testing::Test {
 protected:
-
     static std::string read(const fs::path& path) {
         std::ifstream in(path);
         std::stringstream s;

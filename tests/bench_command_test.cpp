@@ -148,9 +148,8 @@ TEST_F(Bench, FitRecoversTheSmallDatasetAndSummarizes) {
         for (std::string f; std::getline(s, f, ',');) c.push_back(f);
         return c;
     }();
-    for (const char* c :
-         {"n_true", "n", "kd_rel_err", "ks_rel_err", "n_rel_err", "rounds", "time_s",
-          "within_3_std", "failed"})
+    for (const char* c : {"n_true", "n", "kd_rel_err", "ks_rel_err", "n_rel_err", "rounds",
+                          "time_s", "within_3_std", "failed"})
         EXPECT_NE(std::find(columns.begin(), columns.end(), c), columns.end()) << c;
     ASSERT_EQ(rows.size(), 8u);  // 4 samples at 2 spp per round
     for (const auto& row : rows) {

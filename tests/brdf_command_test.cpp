@@ -23,7 +23,6 @@ namespace fs = std::filesystem;
 
 class BrdfCommandTest : public ::testing::Test {
 protected:
-
     // Runs phongfit with `args`; returns its exit code, stdout and stderr in out_ and err_.
     int run(const std::string& args) {
         const std::string command =

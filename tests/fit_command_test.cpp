@@ -5,10 +5,10 @@
 #include <ImfHeader.h>
 #include <ImfOutputFile.h>
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
@@ -27,8 +27,8 @@ constexpr int kSize = 40;
 class FitCommand : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
-        dir_ = fs::temp_directory_path() /
-               ("phongfit_fit_" + std::to_string(getpid()) + "_" + std::to_string(std::random_device{}()));
+        dir_ = fs::temp_directory_path() / ("phongfit_fit_" + std::to_string(getpid()) + "_" +
+                                            std::to_string(std::random_device{}()));
         fs::create_directories(dir_);
         const auto r = run({"render", kSphere, "-o", path("sphere.exr"), "--spp", "64", "--quiet"});
         ASSERT_EQ(r.exitCode, 0) << r.err;
@@ -74,11 +74,12 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
     }
     EXPECT_FALSE(report.contains("exposure")) << "only with --fit-exposure";
     EXPECT_EQ(report["views"][0]["max_depth"], 2);
-    EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1) << "a coarse check; recovery is tested elsewhere";
+    EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1)
+        << "a coarse check; recovery is tested elsewhere";
 
     // fitted.xml renders, with the fitted values in it.
-    const auto again = run({"render", path("out/fitted.xml"), "-o", path("again.exr"), "--spp", "4",
-                            "--quiet"});
+    const auto again =
+        run({"render", path("out/fitted.xml"), "-o", path("again.exr"), "--spp", "4", "--quiet"});
     ASSERT_EQ(again.exitCode, 0) << again.err;
     const cv::Mat compare = cv::imread(path("out/compare.png"));
     EXPECT_EQ(compare.cols, 3 * kSize);
@@ -113,7 +114,8 @@ TEST_F(FitCommand, DemoRendersFitsBackAndPrintsTheErrors) {
         EXPECT_NEAR(m["ks"][c].get<double>(), 0.2, 0.05 * 0.2);
     }
     EXPECT_NEAR(m["n"].get<double>(), 30, 0.1 * 30);
-    for (const char* row : {"kd.r", "ks.b", "n "}) EXPECT_NE(r.out.find(row), std::string::npos) << r.out;
+    for (const char* row : {"kd.r", "ks.b", "n "})
+        EXPECT_NE(r.out.find(row), std::string::npos) << r.out;
 }
 
 TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
@@ -135,15 +137,19 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         std::string fragment;
     };
     const std::vector<Case> cases = {
-        {{"--view", kSphere + ":" + path("wrong_size.exr"), "--material", "sphere"}, "image is 41x40"},
-        {{"--view", view, "--material", "sphere", "--mask", path("mask_small.png")}, "mask_small.png"},
+        {{"--view", kSphere + ":" + path("wrong_size.exr"), "--material", "sphere"},
+         "image is 41x40"},
+        {{"--view", view, "--material", "sphere", "--mask", path("mask_small.png")},
+         "mask_small.png"},
         {{"--view", view, "--material", "ball"}, "no bsdf with id 'ball'"},
         {{"--view", cornell + ":" + path("sphere.exr"), "--material", "white"}, "not 'phong'"},
-        {{"--view", view, "--material", "sphere", "--mask", path("mask_zero.png")}, "every pixel is masked"},
+        {{"--view", view, "--material", "sphere", "--mask", path("mask_zero.png")},
+         "every pixel is masked"},
         {{"--view", kSphere + ":" + path("nan.exr"), "--material", "sphere"}, "is not finite"},
         {{"--view", kSphere + ":" + path("missing.exr"), "--material", "sphere"}, "missing.exr"},
         {{"--view", kSphere + ":" + path("garbage.exr"), "--material", "sphere"}, "garbage.exr"},
-        {{"--view", path("nope.xml") + ":" + path("sphere.exr"), "--material", "sphere"}, "nope.xml"},
+        {{"--view", path("nope.xml") + ":" + path("sphere.exr"), "--material", "sphere"},
+         "nope.xml"},
         {{"--view", "no-colon-here", "--material", "sphere"}, "expected SCENE.xml:IMAGE"},
         {{"--view", view, "--material", "sphere", "--kd", "0.9", "--ks", "0.5"}, "exceeds 1"},
         {{"--view", view, "--material", "sphere", "--kd", "1,2"}, "--kd '1,2'"},
@@ -152,7 +158,8 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
          "images are black"},
         {{"--view", kSphere + ":" + path("glaring.exr"), "--material", "sphere", "--fit-exposure"},
          "times as bright as the scene renders them"},
-        {{"--capture", path("capture"), "--fit-exposure"}, "--fit-exposure does not apply to --capture"},
+        {{"--capture", path("capture"), "--fit-exposure"},
+         "--fit-exposure does not apply to --capture"},
     };
     for (const Case& c : cases) {
         std::vector<std::string> args = {"fit"};
@@ -160,7 +167,8 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         args.insert(args.end(), {"-o", path("refused"), "--quiet"});
         const auto r = run(args);
         EXPECT_NE(r.exitCode, 0) << c.fragment;
-        EXPECT_NE(r.err.find(c.fragment), std::string::npos) << "expected '" << c.fragment << "' in: " << r.err;
+        EXPECT_NE(r.err.find(c.fragment), std::string::npos)
+            << "expected '" << c.fragment << "' in: " << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
         EXPECT_FALSE(fs::exists(path("refused"))) << c.fragment;
     }

@@ -74,9 +74,9 @@ protected:
         EXPECT_TRUE(std::isfinite(m["n"].get<double>()));
         EXPECT_TRUE(std::isfinite(report["rmse"].get<double>()));
         const std::string side = std::to_string(size);
-        const auto again = test::runProcess(
-            {PHONGFIT_EXE, "render", path("out/fitted.xml"), "-o", path("again.exr"), "--spp",
-             "1", "-D", "width=" + side, "-D", "height=" + side, "--quiet"});
+        const auto again = test::runProcess({PHONGFIT_EXE, "render", path("out/fitted.xml"), "-o",
+                                             path("again.exr"), "--spp", "1", "-D", "width=" + side,
+                                             "-D", "height=" + side, "--quiet"});
         EXPECT_EQ(again.exitCode, 0) << again.err;
         EXPECT_EQ(cv::imread(path("out/compare.png")).rows, size);
         expectNoTemporaries();
@@ -98,9 +98,9 @@ TEST_F(FitSynthInterrupt, FitWritesBestParametersSoFarAfterSigint) {
         "--rounds",   "100",       "-D",     "width=40",
         "-D",         "height=40", "-o",     path("out")};
     const auto r = test::runProcess(args, {[](const std::string&, const std::string& err) {
-                                                 return err.find("round 1:") != std::string::npos;
-                                             },
-                                             {SIGINT}});
+                                               return err.find("round 1:") != std::string::npos;
+                                           },
+                                           {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_EQ(r.err.find("round 3:"), std::string::npos) << "the fit went on after SIGINT";
     const auto report = nlohmann::json::parse(std::ifstream(path("out/fit.json")));
@@ -122,8 +122,7 @@ TEST_F(FitSynthInterrupt, FitInterruptedInItsFirstRoundStillWritesValidOutputs) 
         "--material", "sphere",   "--spp",  "2048",
         "-D",         "width=32", "-D",     "height=32",
         "-o",         path("out")};
-    const auto r =
-        test::runProcess(args, {test::after(std::chrono::milliseconds(300)), {SIGINT}});
+    const auto r = test::runProcess(args, {test::after(std::chrono::milliseconds(300)), {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     expectCompleteInterruptedFit(nlohmann::json::parse(std::ifstream(path("out/fit.json"))), 32);
 }
@@ -145,9 +144,9 @@ TEST_F(FitSynthInterrupt, SynthKeepsFinishedSamplesAndResumes) {
                                            "1",          "--quiet"};
     const fs::path dataset = path("dataset");
     const auto r = test::runProcess(args, {[&](const std::string&, const std::string&) {
-                                                 return !finishedSamples(dataset).empty();
-                                             },
-                                             {SIGINT}});
+                                               return !finishedSamples(dataset).empty();
+                                           },
+                                           {SIGINT}});
     ASSERT_NE(r.exitCode, 0) << "an interrupted dataset is not complete";
     EXPECT_NE(r.err.find("interrupted"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("again to resume"), std::string::npos) << r.err;

@@ -332,7 +332,8 @@ TEST(Uncertainty, LeaveOneOutScoreOfALowLeveragePixelAmongMany) {
     const auto fit = [](const Eigen::MatrixXd& a, const Eigen::VectorXd& b) {
         return Eigen::VectorXd((a.transpose() * a).inverse() * a.transpose() * b);
     };
-    const Eigen::VectorXd all = fit(j, y), withoutLast = fit(j.topRows(count - 1), y.head(count - 1));
+    const Eigen::VectorXd all = fit(j, y),
+                          withoutLast = fit(j.topRows(count - 1), y.head(count - 1));
     const Eigen::MatrixXd g = j.transpose() * j;
     const Eigen::VectorXd jp = j.row(count - 1).transpose();
     const Eigen::VectorXd fitted = jp * (jp.dot(all) - y[count - 1]);

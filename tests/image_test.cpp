@@ -1,5 +1,4 @@
 #include "image.h"
-#include "temp_dir.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -17,6 +16,7 @@
 #include <random>
 
 #include "error.h"
+#include "temp_dir.h"
 
 namespace phongfit {
 namespace {
@@ -30,7 +30,6 @@ double srgbFormula(double v) {
 
 class ImageTest : public ::testing::Test {
 protected:
-
     std::string path(const std::string& name) const { return (dir_ / name).string(); }
     bool dirIsEmpty() const { return fs::is_empty(dir_); }
 

@@ -1,10 +1,10 @@
 // `phongfit render` end to end: outputs, sidecar, interrupt, and bad input.
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 
 #include "image.h"
@@ -50,10 +50,10 @@ TEST_F(RenderCommand, WritesExrPngAndSidecar) {
 }
 
 TEST_F(RenderCommand, SigintWritesAValidPartialImage) {
-    const auto r = test::runProcess({PHONGFIT_EXE, "render", kScenes + "/cornell_phong.xml", "-o",
-                                     path("c.exr"), "--spp", "100000", "-D", "width=64", "-D",
-                                     "height=64", "--quiet"},
-                                    {test::after(std::chrono::milliseconds(1500)), {SIGINT}});
+    const auto r = test::runProcess(
+        {PHONGFIT_EXE, "render", kScenes + "/cornell_phong.xml", "-o", path("c.exr"), "--spp",
+         "100000", "-D", "width=64", "-D", "height=64", "--quiet"},
+        {test::after(std::chrono::milliseconds(1500)), {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("interrupted: the image holds"), std::string::npos) << r.out;
     const Image image = readImage(path("c.exr"));

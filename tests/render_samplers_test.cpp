@@ -32,9 +32,9 @@ RegionStats regions(const RenderResult& r) {
 }
 
 TEST(RenderSamplers, AllSamplersWithAndWithoutMisAgreeOnTheCornellBox) {
-    const Renderer renderer(loadScene(PHONGFIT_SCENES_DIR "/cornell_phong.xml",
-                                      {{"width", std::to_string(kSize)},
-                                       {"height", std::to_string(kSize)}}));
+    const Renderer renderer(
+        loadScene(PHONGFIT_SCENES_DIR "/cornell_phong.xml",
+                  {{"width", std::to_string(kSize)}, {"height", std::to_string(kSize)}}));
     RenderOptions options;
     options.spp = 128;
     options.quiet = true;

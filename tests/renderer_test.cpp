@@ -41,8 +41,8 @@ Scene sphereScene(const PhongMaterial& material, int size) {
     return scene;
 }
 
-// Radiance along a camera ray, written from the formulas in world space (long double), independent of
-// the renderer's local-frame code. NaN where the ray misses the sphere.
+// Radiance along a camera ray, written from the formulas in world space (long double), independent
+// of the renderer's local-frame code. NaN where the ray misses the sphere.
 long double analyticRadiance(const Scene& scene, const Ray& ray, int channel) {
     const PhongMaterial& m = scene.bsdfs[0].params;
     const Vec3d& o = ray.origin;
@@ -123,7 +123,8 @@ TEST_P(AnalyticSphere, InteriorPixelsMatchTheBoxFilteredClosedForm) {
             }
         }
     ASSERT_GT(interior, 500);
-    EXPECT_LT(double(sumAbsErr / sumRef), 0.01) << "mean relative error over " << interior << " pixels";
+    EXPECT_LT(double(sumAbsErr / sumRef), 0.01)
+        << "mean relative error over " << interior << " pixels";
 }
 
 INSTANTIATE_TEST_SUITE_P(Materials, AnalyticSphere,
@@ -133,8 +134,8 @@ INSTANTIATE_TEST_SUITE_P(Materials, AnalyticSphere,
                                            AnalyticCase{0.1, 0.5, 300, 8192},
                                            AnalyticCase{0.2, 0.8, 5000, 16384}));
 
-// A closed box, faces towards the inside, every face emitting Le and reflecting diffusely with albedo
-// rho: radiance is Le / (1 - rho) everywhere.
+// A closed box, faces towards the inside, every face emitting Le and reflecting diffusely with
+// albedo rho: radiance is Le / (1 - rho) everywhere.
 Scene furnaceScene(double rho, double le) {
     Scene scene;
     scene.integrator.maxDepth = -1;

@@ -9,8 +9,8 @@
 #include <random>
 #include <vector>
 
-#include "material_params.h"
 #include "least_squares_residual.h"
+#include "material_params.h"
 #include "moment_residual.h"
 #include "replay_jacobian.h"
 
@@ -201,12 +201,13 @@ void checkLeastSquaresBlock(const HeldParams& heldFirst) {
     const std::vector<std::uint32_t> bothSlots = {0, 1};
     const Color3 observed(0.3, 0.2, 0.1);
     const int pixels = r.paths.width;
-    const auto stacked = [&](const double (&at)[2][P]) {
+    const auto stacked = [&](const double(&at)[2][P]) {
         const std::vector<PhongMaterial> phong = {toPhong<P>(at[0], held[0]),
                                                   toPhong<P>(at[1], held[1])};
         Eigen::VectorXd out(3 * pixels);
         for (int p = 0; p < pixels; ++p)
-            out.segment<3>(3 * p) = (1.5 * (replayPixel(r.paths, p, phong.data()) - observed)).matrix();
+            out.segment<3>(3 * p) =
+                (1.5 * (replayPixel(r.paths, p, phong.data()) - observed)).matrix();
         return out;
     };
     const auto sums = [&](const double* y, double& squares, Eigen::VectorXd* gradient,
@@ -221,7 +222,8 @@ void checkLeastSquaresBlock(const HeldParams& heldFirst) {
             Eigen::Matrix<double, 3, P> jacobian[2];
             Color3 predicted;
             for (std::uint32_t b = 0; b < 2; ++b)
-                predicted = replayNaturalJacobian<P>(r.paths, p, bothSlots, y, b, scratch, jacobian[b]);
+                predicted =
+                    replayNaturalJacobian<P>(r.paths, p, bothSlots, y, b, scratch, jacobian[b]);
             const Eigen::Vector3d residual = (1.5 * (predicted - observed)).matrix();
             squares += residual.squaredNorm();
             for (int a = 0; gradient != nullptr && a < 2; ++a) {
@@ -271,7 +273,8 @@ void checkLeastSquaresBlock(const HeldParams& heldFirst) {
     EXPECT_NEAR(c.squaredNorm(), cost, 1e-10 * cost);
     EXPECT_NEAR(plain.squaredNorm(), cost, 1e-10 * cost);
     const Eigen::VectorXd gradient = numeric.transpose() * residuals;
-    EXPECT_LE((jc.transpose() * c - gradient).norm(), 1e-6 * gradient.norm()) << gradient.transpose();
+    EXPECT_LE((jc.transpose() * c - gradient).norm(), 1e-6 * gradient.norm())
+        << gradient.transpose();
     const Eigen::MatrixXd gauss = numeric.transpose() * numeric;
     EXPECT_LE((jc.transpose() * jc - gauss).norm(), 1e-6 * gauss.norm());
 }

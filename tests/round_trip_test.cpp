@@ -4,11 +4,11 @@
 // extreme cases.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 
 #include "image.h"
@@ -38,8 +38,9 @@ protected:
     // Renders `scene` with `truth` defines into NAME.exr.
     std::string render(const std::string& scene, const std::map<std::string, std::string>& truth,
                        const std::string& name, int spp) {
-        std::vector<std::string> args = {PHONGFIT_EXE, "render", scene, "-o", path(name + ".exr"),
-                                         "--spp", std::to_string(spp), "--seed", "11", "--quiet"};
+        std::vector<std::string> args = {
+            PHONGFIT_EXE,        "render", scene, "-o",     path(name + ".exr"), "--spp",
+            std::to_string(spp), "--seed", "11",  "--quiet"};
         const auto d = defines(truth);
         args.insert(args.end(), d.begin(), d.end());
         const auto r = test::runProcess(args);
@@ -50,8 +51,8 @@ protected:
     // Fits `views` (scene:image) with extra arguments; returns fit.json.
     nlohmann::json fit(const std::vector<std::string>& views, std::vector<std::string> extra,
                        const std::string& name) {
-        std::vector<std::string> args = {PHONGFIT_EXE, "fit", "--material", "sphere", "-o",
-                                         path(name), "--quiet", "--seed", "3"};
+        std::vector<std::string> args = {PHONGFIT_EXE, "fit",     "--material", "sphere", "-o",
+                                         path(name),   "--quiet", "--seed",     "3"};
         for (const std::string& v : views) args.insert(args.end(), {"--view", v});
         args.insert(args.end(), extra.begin(), extra.end());
         const auto r = test::runProcess(args);
@@ -82,13 +83,16 @@ class SphereRoundTrip : public RoundTrip, public ::testing::WithParamInterface<S
 
 TEST_P(SphereRoundTrip, RecoversKdKsAndN) {
     const SphereCase& c = GetParam();
-    const std::map<std::string, std::string> truth = {
-        {"kd", std::to_string(c.kd)}, {"ks", std::to_string(c.ks)}, {"n", std::to_string(c.n)},
-        {"fov", c.fov}, {"light_x", "1"}, {"light_y", "1.5"}};
+    const std::map<std::string, std::string> truth = {{"kd", std::to_string(c.kd)},
+                                                      {"ks", std::to_string(c.ks)},
+                                                      {"n", std::to_string(c.n)},
+                                                      {"fov", c.fov},
+                                                      {"light_x", "1"},
+                                                      {"light_y", "1.5"}};
     const std::string image = render(kLit, truth, "truth", 256);
     // The scene's own values are the truth: start elsewhere, with n off by 100x.
-    std::vector<std::string> extra = {"--kd", "0.2", "--ks", "0.1", "--n", std::to_string(c.startN),
-                                      "--spp", c.spp};
+    std::vector<std::string> extra = {
+        "--kd", "0.2", "--ks", "0.1", "--n", std::to_string(c.startN), "--spp", c.spp};
     const auto d = defines(truth);
     extra.insert(extra.end(), d.begin(), d.end());
     const auto report = fit({kLit + ":" + image}, extra, "fit");
@@ -96,21 +100,21 @@ TEST_P(SphereRoundTrip, RecoversKdKsAndN) {
     EXPECT_TRUE(report["materials"]["sphere"]["unconstrained"].empty());
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    ExponentGrid, SphereRoundTrip,
-    ::testing::Values(SphereCase{0.5, 0.4, 1, 100, "24", "4"},
-                      SphereCase{0.5, 0.3, 30, 3000, "24", "4"},
-                      SphereCase{0.5, 0.3, 30, 0.3, "24", "4"},
-                      SphereCase{0.3, 0.6, 1000, 10, "6", "4"},
-                      SphereCase{0.3, 0.6, 10000, 100, "2", "16"}),
-    [](const ::testing::TestParamInfo<SphereCase>& info) {
-        const auto name = [](double v) {
-            std::string s = fmt::format("{:g}", v);
-            std::replace(s.begin(), s.end(), '.', 'p');
-            return s;
-        };
-        return fmt::format("n{}_from{}", name(info.param.n), name(info.param.startN));
-    });
+INSTANTIATE_TEST_SUITE_P(ExponentGrid, SphereRoundTrip,
+                         ::testing::Values(SphereCase{0.5, 0.4, 1, 100, "24", "4"},
+                                           SphereCase{0.5, 0.3, 30, 3000, "24", "4"},
+                                           SphereCase{0.5, 0.3, 30, 0.3, "24", "4"},
+                                           SphereCase{0.3, 0.6, 1000, 10, "6", "4"},
+                                           SphereCase{0.3, 0.6, 10000, 100, "2", "16"}),
+                         [](const ::testing::TestParamInfo<SphereCase>& info) {
+                             const auto name = [](double v) {
+                                 std::string s = fmt::format("{:g}", v);
+                                 std::replace(s.begin(), s.end(), '.', 'p');
+                                 return s;
+                             };
+                             return fmt::format("n{}_from{}", name(info.param.n),
+                                                name(info.param.startN));
+                         });
 
 // Path tracing at depth 5 (interreflections between the sphere and the walls, an area light):
 // the recorded paths are noisy, so this is where the estimator must be unbiased. 128 x 128 and 64
@@ -153,8 +157,8 @@ TEST_F(RoundTrip, SmallCornellBoxStaysWithinItsStandardErrors) {
 // free, ks was under 2 standard errors and n was held at the start, 100, biasing ks), and round
 // 0, recorded at that far start, must not pass for converged on its large standard errors.
 TEST_F(RoundTrip, SubPixelHighlightKeepsItsExponentFree) {
-    const std::map<std::string, std::string> truth = {{"kd", "0.6"}, {"ks", "0.25"},
-                                                      {"n", "50000"}};
+    const std::map<std::string, std::string> truth = {
+        {"kd", "0.6"}, {"ks", "0.25"}, {"n", "50000"}};
     const std::string image = render(kPoint, truth, "sharp", 256);
     const auto report =
         fit({kPoint + ":" + image},
@@ -177,12 +181,12 @@ TEST_F(RoundTrip, SubPixelHighlightKeepsItsExponentFree) {
 // stayed small and kd went to 0.96 +- 0.14, 4.6 standard errors off. The lobe test is decided
 // anew each round, and the estimate's errors then cover the truth.
 TEST_F(RoundTrip, GrazingHighlightReleasesAnExponentHeldInRoundZero) {
-    const std::map<std::string, std::string> truth = {
-        {"kd", "0.31"}, {"ks", "0.29"}, {"n", "10.65"}, {"light_x", "-2.005"},
-        {"light_y", "2.976"}, {"light_z", "-6.092"}};
+    const std::map<std::string, std::string> truth = {{"kd", "0.31"},       {"ks", "0.29"},
+                                                      {"n", "10.65"},       {"light_x", "-2.005"},
+                                                      {"light_y", "2.976"}, {"light_z", "-6.092"}};
     const std::string image = render(kOrbit, truth, "grazing", 256);
-    std::vector<std::string> extra = {"--grey", "--kd", "0.25", "--ks", "0.25", "--n", "100",
-                                      "--spp", "4"};
+    std::vector<std::string> extra = {"--grey", "--kd", "0.25",  "--ks", "0.25",
+                                      "--n",    "100",  "--spp", "4"};
     const auto d = defines(truth);
     extra.insert(extra.end(), d.begin(), d.end());
     const auto m = fit({kOrbit + ":" + image}, extra, "fit")["materials"]["sphere"];
@@ -206,9 +210,11 @@ TEST_F(RoundTrip, NoSpecularLobeLeavesNUnconstrained) {
 
 TEST_F(RoundTrip, NoDiffuseAndEnergyConservingExtremes) {
     for (const auto& [kd, ks] : {std::pair{0.0, 0.7}, std::pair{0.35, 0.65}}) {
-        const std::map<std::string, std::string> truth = {
-            {"kd", std::to_string(kd)}, {"ks", std::to_string(ks)}, {"n", "40"},
-            {"light_x", "1"}, {"light_y", "1.5"}};
+        const std::map<std::string, std::string> truth = {{"kd", std::to_string(kd)},
+                                                          {"ks", std::to_string(ks)},
+                                                          {"n", "40"},
+                                                          {"light_x", "1"},
+                                                          {"light_y", "1.5"}};
         const std::string image = render(kLit, truth, "extreme", 256);
         std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "10"};
         const auto d = defines(truth);
@@ -224,8 +230,8 @@ TEST_F(RoundTrip, NoDiffuseAndEnergyConservingExtremes) {
 }
 
 TEST_F(RoundTrip, LdrPhotoWithClippedHighlightsIsFittedWithoutThem) {
-    const std::map<std::string, std::string> truth = {{"light_x", "1"}, {"light_y", "1.5"},
-                                                      {"intensity", "60"}};
+    const std::map<std::string, std::string> truth = {
+        {"light_x", "1"}, {"light_y", "1.5"}, {"intensity", "60"}};
     const Image hdr = readImage(render(kLit, truth, "hdr", 256));
     writePng(hdr, path("photo.png"));  // 8-bit sRGB: the highlight clips at 255
     const Image ldr = readImage(path("photo.png"));
@@ -259,8 +265,8 @@ std::string scaled(const std::string& exr, double gain, const std::string& out) 
 // --fit-exposure the same image pins kd + ks at 1 and fits badly.
 TEST_F(RoundTrip, CornellBoxWithUnknownExposure) {
     const std::map<std::string, std::string> size = {{"width", "128"}, {"height", "128"}};
-    const std::string image = scaled(render(kCornell, size, "cornell", 512), 2.5,
-                                     path("bright.exr"));
+    const std::string image =
+        scaled(render(kCornell, size, "cornell", 512), 2.5, path("bright.exr"));
     std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.05", "--n", "300", "--spp", "64"};
     const auto d = defines(size);
     extra.insert(extra.end(), d.begin(), d.end());
@@ -288,8 +294,8 @@ TEST_F(RoundTrip, DirectLightLeavesTheExposureUnconstrained) {
     const std::string image = scaled(render(kLit, truth, "truth", 256), 2.5, path("bright.exr"));
     const auto d = defines(truth);
     for (const auto& [start, ks] : {std::pair{"0.3", "0.05"}, std::pair{"0.7", "0.3"}}) {
-        std::vector<std::string> extra = {"--fit-exposure", "--kd", start, "--ks", ks,
-                                          "--n", "300"};
+        std::vector<std::string> extra = {
+            "--fit-exposure", "--kd", start, "--ks", ks, "--n", "300"};
         extra.insert(extra.end(), d.begin(), d.end());
         const auto report = fit({kLit + ":" + image}, extra, fmt::format("fit{}", start));
         const auto& e = report["exposure"];
@@ -307,14 +313,18 @@ TEST_F(RoundTrip, DirectLightLeavesTheExposureUnconstrained) {
         }
         EXPECT_NEAR(m["n"].get<double>(), 30, 0.05 * 30) << "start kd " << start;
         // The bright start's brightness match leaves the fit wanting kd + ks > 1.
-        if (std::string(start) == "0.7") EXPECT_NEAR(highest, 1, 0.005);
-        else EXPECT_LT(highest, 0.9);
+        if (std::string(start) == "0.7")
+            EXPECT_NEAR(highest, 1, 0.005);
+        else
+            EXPECT_LT(highest, 0.9);
     }
 }
 
 TEST_F(RoundTrip, TwoViewsFittedJointlyBeatEitherAlone) {
-    const std::map<std::string, std::string> a = {{"light_x", "2"}, {"light_y", "0"}, {"light_z", "5"}};
-    const std::map<std::string, std::string> b = {{"light_x", "-1"}, {"light_y", "2"}, {"light_z", "6"}};
+    const std::map<std::string, std::string> a = {
+        {"light_x", "2"}, {"light_y", "0"}, {"light_z", "5"}};
+    const std::map<std::string, std::string> b = {
+        {"light_x", "-1"}, {"light_y", "2"}, {"light_z", "6"}};
     const std::string imageA = render(kLit, a, "a", 64), imageB = render(kLit, b, "b", 64);
     // Each view's defines go into its scene through a copy with the light baked in.
     auto bake = [&](const std::map<std::string, std::string>& d, const std::string& name) {
@@ -333,8 +343,10 @@ TEST_F(RoundTrip, TwoViewsFittedJointlyBeatEitherAlone) {
     const std::vector<std::string> start = {"--kd", "0.2", "--ks", "0.1", "--n", "300"};
     const auto ma = fit({sceneA + ":" + imageA}, start, "fa")["materials"]["sphere"];
     const auto mb = fit({sceneB + ":" + imageB}, start, "fb")["materials"]["sphere"];
-    const auto mj = fit({sceneA + ":" + imageA, sceneB + ":" + imageB}, start, "fj")["materials"]["sphere"];
-    EXPECT_LT(mj["n_std"].get<double>(), std::min(ma["n_std"].get<double>(), mb["n_std"].get<double>()));
+    const auto mj =
+        fit({sceneA + ":" + imageA, sceneB + ":" + imageB}, start, "fj")["materials"]["sphere"];
+    EXPECT_LT(mj["n_std"].get<double>(),
+              std::min(ma["n_std"].get<double>(), mb["n_std"].get<double>()));
     for (const char* key : {"kd_std", "ks_std"})
         for (int c = 0; c < 3; ++c)
             EXPECT_LT(mj[key][c].get<double>(),
