@@ -11,6 +11,8 @@ packages=(
   # scripts/fuzz.sh and scripts/sanitize.sh: libFuzzer and the sanitizer runtimes, and
   # llvm-symbolizer for readable reports.
   clang libclang-rt-14-dev llvm
+  # tests/CMakeLists.txt: the clang_format test (scripts/check_format.sh).
+  clang-format git
 )
 
 missing=()
