@@ -380,7 +380,6 @@ void runBenchFit(const BenchFitOptions& o) {
                                 fs::absolute(dir).parent_path().string()));
     const std::vector<DatasetSample> samples = readDataset(o.dataset);
     fs::create_directories(dir);
-    installInterruptHandler();
 
     std::vector<FitRow> rows;
     const std::size_t total = samples.size() * o.sppPerRound.size();

@@ -90,7 +90,6 @@ std::vector<BenchRenderRow> runBenchRender(const BenchRenderOptions& options) {
                                     options.scene, width, height));
     }
     fs::create_directories(dir);
-    installInterruptHandler();
 
     RenderOptions render;
     render.threads = options.threads;

@@ -191,7 +191,6 @@ SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options) {
             pending.push_back(i);
     }
 
-    installInterruptHandler();
     const int jobs = std::clamp(options.jobs, 1, std::max(1, int(pending.size())));
     const int threads = std::max(1, int(std::thread::hardware_concurrency()) / jobs);
     Progress progress("synth", pending.size(), "samples", options.quiet);

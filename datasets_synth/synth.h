@@ -29,7 +29,7 @@ struct SynthSummary {
     double seconds = 0;
 };
 
-// Stops between samples on SIGINT/SIGTERM (renderer/interrupt.h); a render interrupted mid-way is
+// Stops between samples on SIGINT/SIGTERM (src/interrupt.h); a render interrupted mid-way is
 // discarded, never saved as a sample. index.json is written only once every sample is complete.
 // Throws Error for an unusable output folder or a config that differs from the folder's.
 SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options);

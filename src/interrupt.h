@@ -4,7 +4,8 @@
 
 namespace phongfit {
 
-// Installs the handler (idempotent). A second signal while the flag is set ends the process.
+// Installs the handler (idempotent); main() does, once. A second signal while the flag is set ends
+// the process.
 void installInterruptHandler();
 bool interruptRequested();
 // For tests: set or clear the flag as a signal would.

@@ -230,7 +230,6 @@ FitResult runFit(const FitArgs& args) {
         start.push_back(m);
     }
 
-    installInterruptHandler();
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
                                     int round) -> PathSet {
         const View& v = views[view];

@@ -163,7 +163,6 @@ FitResult runCaptureFit(const CaptureArgs& args) {
     options.fit.loss = parseLoss(args.loss);
     options.fit.grey = args.grey;
     options.fit.threads = args.threads;
-    installInterruptHandler();
     options.fit.stopRequested = interruptRequested;
     options.fit.verbose = args.verbose;
     if (!(args.minCos >= 0 && args.minCos < 1))

@@ -1,16 +1,19 @@
 // The phongfit command line: each module adds its subcommand; errors become one line and exit 1.
+// SIGINT/SIGTERM are caught here, once: the libraries only poll interruptRequested().
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
 
 #include "commands.h"
 #include "error.h"
+#include "interrupt.h"
 
 int main(int argc, char** argv) {
     CLI::App app{
         "phongfit: recover Modified Phong BRDF parameters from images, and render with them"};
     app.require_subcommand(1);
     phongfit::addCommands(app);
+    phongfit::installInterruptHandler();
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -49,7 +49,6 @@ void requireOutputDirectory(const std::string& path) {
 void runRender(const RenderArgs& args) {
     requireOutputDirectory(args.output);
     if (!args.png.empty()) requireOutputDirectory(args.png);
-    installInterruptHandler();
     Renderer renderer(loadScene(args.scene, parseDefines(args.defines)));
     const RenderResult result = renderer.render(args.options);
     const Image image = toImage(result);

@@ -32,7 +32,6 @@ void runDemo(const DemoArgs& args) {
     fs::create_directories(args.output);
     const std::string exr = (fs::path(args.output) / "cornell.exr").string();
 
-    installInterruptHandler();
     const Renderer renderer(loadScene(scenePath));
     RenderOptions render;
     render.spp = args.spp;
