@@ -12,11 +12,11 @@
 
 #include "atomic_file.h"
 #include "error.h"
-#include "fit_command.h"
 #include "image.h"
 #include "interrupt.h"
 #include "machine_info.h"
 #include "plot.h"
+#include "scene_fit.h"
 #include "synth_dataset.h"
 
 namespace phongfit {
@@ -80,6 +80,12 @@ struct FitRow {
     std::vector<RoundPoint> history;
 };
 
+// A start colour as given on the command line: one number when grey.
+std::string startText(const Color3& c) {
+    return c[0] == c[1] && c[1] == c[2] ? fmt::format("{:g}", c[0])
+                                        : fmt::format("{:g},{:g},{:g}", c[0], c[1], c[2]);
+}
+
 bool finite(const MaterialFit& m) {
     return m.kd.allFinite() && m.ks.allFinite() && std::isfinite(m.n);
 }
@@ -88,25 +94,28 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
     FitRow row;
     row.sample = &s;
     row.spp = spp;
-    FitArgs args;
-    args.views = {s.scenePath + ":" + s.imagePath};
-    args.materials = {s.material};
-    const fs::path out = dir / "fits" / fmt::format("spp{}", spp) / s.name;
-    fs::create_directories(out.parent_path());
-    args.output = out.string();
-    args.kd = o.startKd;
-    args.ks = o.startKs;
-    args.n = o.startN;
-    args.spp = spp;
-    args.rounds = o.rounds;
-    args.grey = s.grey;
-    args.threads = o.threads;
-    args.quiet = true;
+    SceneFitInputs in;
+    in.views = {{s.scenePath, s.imagePath}};
+    in.materials = {s.material};
+    in.kd = o.startKd;
+    in.ks = o.startKs;
+    in.n = o.startN;
+    const SceneRecording recording{spp, 0, 0, o.threads};
+    FitOptions options;
+    options.maxRounds = o.rounds;
+    options.grey = s.grey;
+    options.threads = o.threads;
+    options.stopRequested = interruptRequested;
+    // Timed: reading the inputs and fitting, not writing the fit's outputs (which re-render).
     const auto start = std::chrono::steady_clock::now();
     try {
-        const FitResult r = runFit(args);
+        const SceneFitProblem problem = loadSceneFit(in);
+        const FitResult r = fitScene(problem, recording, options);
         row.seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const fs::path out = dir / "fits" / fmt::format("spp{}", spp) / s.name;
+        fs::create_directories(out.parent_path());
+        writeSceneFit(problem, r, recording, 32, out.string());
         row.returned = true;
         row.fit = r.materials.at(0);
         row.rounds = int(r.rounds.size());
@@ -406,14 +415,15 @@ void runBenchFit(const BenchFitOptions& o) {
     writePng(errorVsTimePlot(rows, o.sppPerRound), (dir / "error_vs_time_fit.png").string());
 
     const json machine = machineInfo(o.threads);
-    const json run = {{"command", "bench fit"},
-                      {"dataset", o.dataset},
-                      {"samples", samples.size()},
-                      {"spp_per_round", o.sppPerRound},
-                      {"start", {{"kd", o.startKd}, {"ks", o.startKs}, {"n", o.startN}}},
-                      {"max_rounds", o.rounds},
-                      {"fail_threshold", o.failThreshold},
-                      {"interrupted", interruptRequested()}};
+    const json run = {
+        {"command", "bench fit"},
+        {"dataset", o.dataset},
+        {"samples", samples.size()},
+        {"spp_per_round", o.sppPerRound},
+        {"start", {{"kd", startText(o.startKd)}, {"ks", startText(o.startKs)}, {"n", o.startN}}},
+        {"max_rounds", o.rounds},
+        {"fail_threshold", o.failThreshold},
+        {"interrupted", interruptRequested()}};
     json info = machine;
     info["run"] = run;
     writeText(dir / "machine.json", info.dump(2) + "\n");
@@ -429,7 +439,7 @@ void runBenchFit(const BenchFitOptions& o) {
         "\"within 3 std\" those whose every parameter not held is within 3 of its reported "
         "standard errors of the truth. "
         "Start for every sample: kd {}, ks {}, n {:g}; at most {} rounds.",
-        o.failThreshold, o.startKd, o.startKs, o.startN, o.rounds);
+        o.failThreshold, startText(o.startKd), startText(o.startKs), o.startN, o.rounds);
     const std::string md = markdownTable(table);
     writeText(
         dir / "summary.md",

@@ -7,13 +7,15 @@
 #include <string>
 #include <vector>
 
+#include "math.h"
+
 namespace phongfit {
 
 struct BenchFitOptions {
     std::string dataset, output;
     std::vector<int> sppPerRound = {4, 16};
     // The same start for every sample, so it is far from most truths.
-    std::string startKd = "0.25", startKs = "0.25";
+    Color3 startKd = Color3::Constant(0.25), startKs = Color3::Constant(0.25);
     double startN = 100;
     int rounds = 6;
     // A fit fails when it throws, returns a non-finite value, or misses a parameter by more than

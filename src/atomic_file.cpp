@@ -47,4 +47,13 @@ void writeAtomically(const std::filesystem::path& target,
     }
 }
 
+void requireOutputDirectory(const std::string& dir) {
+    namespace fs = std::filesystem;
+    if (fs::exists(dir) && !fs::is_directory(dir))
+        throw Error(fmt::format("-o '{}': exists and is not a directory", dir));
+    if (!fs::is_directory(fs::absolute(dir).parent_path()))
+        throw Error(fmt::format("-o '{}': directory '{}' does not exist", dir,
+                                fs::absolute(dir).parent_path().string()));
+}
+
 }  // namespace phongfit

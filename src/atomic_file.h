@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <string>
 
 namespace phongfit {
 
@@ -15,5 +16,9 @@ namespace phongfit {
 // does not exist, or if `write` returns without creating the temporary.
 void writeAtomically(const std::filesystem::path& target,
                      const std::function<void(const std::filesystem::path& temporary)>& write);
+
+// Throws Error, before any work is done, when the output directory `dir` could not be created
+// later: it exists and is not a directory, or its parent directory does not exist.
+void requireOutputDirectory(const std::string& dir);
 
 }  // namespace phongfit

@@ -422,6 +422,13 @@ TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         {{"--capture", dir, "--holdout", "1-30"}, "none is left to fit"},
         {{"--capture", dir, "--min-cos", "1"}, "--min-cos"},
         {{"--capture", dir, "--spp", "4"}, "--spp applies to scene fits"},
+        // Every scene-only option is refused, not silently ignored (they form one option group).
+        {{"--capture", dir, "--direct-spp", "8"}, "--direct-spp applies to scene fits"},
+        {{"--capture", dir, "--compare-spp", "8"}, "--compare-spp applies to scene fits"},
+        {{"--capture", dir, "-D", "a=1"}, "-D applies to scene fits"},
+        {{"--capture", dir, "--rounds", "2"}, "--rounds applies to scene fits"},
+        {{"--view", "a.xml:b.exr", "--min-cos", "0.1"}, "--min-cos applies to --capture"},
+        {{"--view", "a.xml:b.exr", "--holdout", "1"}, "--holdout applies to --capture"},
         {{"--capture", out("nowhere")}, "nowhere': no such folder"},
         {{"--capture", dir, "--view", "a.xml:b.exr"}, "exactly one of --view"},
         {{}, "exactly one of --view"},

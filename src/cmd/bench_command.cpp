@@ -1,6 +1,7 @@
 // phongfit bench render SCENE.xml ... -o DIR  and  phongfit bench fit DATASET_DIR ... -o DIR
 #include "bench_fit.h"
 #include "bench_render.h"
+#include "color_option.h"
 #include "commands.h"
 
 namespace phongfit {
@@ -44,9 +45,11 @@ void addBenchCommand(CLI::App& app) {
     fit->add_option("--spp-per-round", f->sppPerRound, "paths recorded per pixel and round; a list")
         ->delimiter(',')
         ->capture_default_str();
-    fit->add_option("--start-kd", f->startKd, "start kd for every sample (R,G,B or one number)")
+    auto startKd = std::make_shared<std::string>("0.25"),
+         startKs = std::make_shared<std::string>("0.25");
+    fit->add_option("--start-kd", *startKd, "start kd for every sample (R,G,B or one number)")
         ->capture_default_str();
-    fit->add_option("--start-ks", f->startKs, "start ks for every sample")->capture_default_str();
+    fit->add_option("--start-ks", *startKs, "start ks for every sample")->capture_default_str();
     fit->add_option("--start-n", f->startN, "start exponent for every sample")
         ->capture_default_str();
     fit->add_option("--rounds", f->rounds, "at most this many rounds per fit")
@@ -58,7 +61,11 @@ void addBenchCommand(CLI::App& app) {
     fit->add_option("--threads", f->threads, "worker threads (default: all)")
         ->check(CLI::Range(1, 1024));
     fit->add_flag("--quiet", f->quiet, "no per-fit lines");
-    fit->callback([f] { runBenchFit(*f); });
+    fit->callback([f, startKd, startKs] {
+        f->startKd = parseColorOption(*startKd, "--start-kd");
+        f->startKs = parseColorOption(*startKs, "--start-ks");
+        runBenchFit(*f);
+    });
 }
 
 }  // namespace phongfit

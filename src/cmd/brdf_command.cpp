@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "atomic_file.h"
+#include "color_option.h"
 #include "commands.h"
 #include "error.h"
 #include "image.h"
@@ -25,24 +26,6 @@ struct BrdfOptions {
     std::string plotPath, csvPath;
     bool logRadius = false;
 };
-
-// "0.5" (grey) or "0.5,0.4,0.3".
-Color3 parseColor(const std::string& text, const char* option) {
-    std::vector<double> values;
-    std::istringstream in(text);
-    for (std::string item; std::getline(in, item, ',');) {
-        double v = 0;
-        const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), v);
-        if (ec != std::errc() || end != item.data() + item.size() || item.empty())
-            throw Error(fmt::format("{} '{}': '{}' is not a number (expected R,G,B or one value)",
-                                    option, text, item));
-        values.push_back(v);
-    }
-    if (values.size() == 1) return Color3::Constant(values[0]);
-    if (values.size() == 3) return Color3(values[0], values[1], values[2]);
-    throw Error(fmt::format("{} '{}': expected one value (grey) or three (R,G,B), got {}", option,
-                            text, values.size()));
-}
 
 // One row per (n, theta_i): theta_i from -90 to 90 degrees in 0.5 degree steps, negative on the
 // side of wo, so the mirror direction is at +theta_o.
@@ -82,7 +65,8 @@ void writeText(const std::string& path, const std::string& text) {
 }
 
 void runBrdf(const BrdfOptions& options) {
-    const Color3 kd = parseColor(options.kd, "--kd"), ks = parseColor(options.ks, "--ks");
+    const Color3 kd = parseColorOption(options.kd, "--kd"),
+                 ks = parseColorOption(options.ks, "--ks");
     for (double n : options.exponents) validatePhong(PhongMaterial{kd, ks, n}, "brdf options");
     if (!(options.thetaODeg >= 0 && options.thetaODeg < 90))
         throw Error(fmt::format("--theta-o {}: the viewing angle must be in [0, 90) degrees",

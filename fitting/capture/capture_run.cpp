@@ -1,23 +1,17 @@
-// phongfit fit --capture DIR ...: fit.json and compare.png for a photometric-stereo capture.
-#include "capture_command.h"
+#include "capture_run.h"
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 
 #include <algorithm>
-#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
-#include "capture.h"
-#include "capture_fit.h"
 #include "comparison_image.h"
 #include "error.h"
 #include "fit_report.h"
 #include "image.h"
-#include "interrupt.h"
 #include "replay.h"
 
 namespace phongfit {
@@ -27,27 +21,9 @@ namespace fs = std::filesystem;
 
 constexpr int kCompareMargin = 4;  // pixels around the mask's bounding box
 
-CaptureReadOptions readOptions(const CaptureArgs& args) {
-    if (int(args.gamma.has_value()) + int(args.srgb) + int(args.linear) > 1)
-        throw Error("--gamma, --srgb and --linear exclude each other");
-    CaptureReadOptions o;
-    if (args.gamma) {
-        if (!(*args.gamma > 0) || !std::isfinite(*args.gamma))
-            throw Error(fmt::format("--gamma {}: must be a finite number > 0", *args.gamma));
-        o.decoding.encoding = Encoding::Gamma;
-        o.decoding.gamma = *args.gamma;
-    }
-    if (args.srgb) o.decoding.encoding = Encoding::Srgb;
-    if (args.linear) o.decoding.encoding = Encoding::Linear;
-    if (args.saturation && !(*args.saturation > 0 && std::isfinite(*args.saturation)))
-        throw Error(fmt::format("--saturation {}: must be a finite number > 0", *args.saturation));
-    o.saturation = args.saturation;
-    o.mask = args.mask;
-    return o;
-}
-
 // The fitted and held-out lights (indices), from --lights and --holdout.
-std::pair<std::vector<int>, std::vector<int>> selectLights(const CaptureArgs& args, int count) {
+std::pair<std::vector<int>, std::vector<int>> selectLights(const CaptureFitInputs& args,
+                                                           int count) {
     const std::vector<int> holdout = args.holdout.empty()
                                          ? std::vector<int>{}
                                          : parseLightList(args.holdout, count, "--holdout");
@@ -151,47 +127,38 @@ nlohmann::json holdoutJson(const Capture& capture, const CaptureFit& fit) {
 
 }  // namespace
 
-FitResult runCaptureFit(const CaptureArgs& args) {
-    if (args.output.empty()) throw Error("-o OUTDIR is required");
-    if (fs::exists(args.output) && !fs::is_directory(args.output))
-        throw Error(fmt::format("-o '{}': exists and is not a directory", args.output));
-    if (!fs::is_directory(fs::absolute(args.output).parent_path()))
-        throw Error(fmt::format("-o '{}': directory '{}' does not exist", args.output,
-                                fs::absolute(args.output).parent_path().string()));
-    CaptureFitOptions options;
-    options.minCos = args.minCos;
-    options.fit.loss = parseLoss(args.loss);
-    options.fit.grey = args.grey;
-    options.fit.threads = args.threads;
-    options.fit.stopRequested = interruptRequested;
-    options.fit.verbose = args.verbose;
-    if (!(args.minCos >= 0 && args.minCos < 1))
-        throw Error(fmt::format("--min-cos {}: must be in [0, 1)", args.minCos));
+CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet) {
+    if (!(inputs.fit.minCos >= 0 && inputs.fit.minCos < 1))
+        throw Error(fmt::format("--min-cos {}: must be in [0, 1)", inputs.fit.minCos));
+    CaptureRun run;
+    run.capture = readCapture(inputs.dir, inputs.read);
+    std::tie(run.lights, run.holdout) = selectLights(inputs, int(run.capture.lights.size()));
+    std::vector<int> all = run.lights;
+    all.insert(all.end(), run.holdout.begin(), run.holdout.end());
+    if (!quiet)
+        fmt::print(stderr, "reading {} images of '{}' ({} mask pixels)\n", all.size(), inputs.dir,
+                   run.capture.pixels.size());
+    run.images = readCaptureImages(run.capture, all, inputs.read, inputs.fit.fit.threads);
+    run.heldOutImages.assign(run.images.begin() + std::ptrdiff_t(run.lights.size()),
+                             run.images.end());
+    run.images.resize(run.lights.size());
+    run.fit = fitCapture(run.capture, run.images, run.heldOutImages, inputs.fit);
+    return run;
+}
 
-    // Everything is read and checked before anything is written.
-    const CaptureReadOptions read = readOptions(args);
-    const Capture capture = readCapture(args.dir, read);
-    const auto [lights, holdout] = selectLights(args, int(capture.lights.size()));
-    std::vector<int> all = lights;
-    all.insert(all.end(), holdout.begin(), holdout.end());
-    if (!args.quiet)
-        fmt::print(stderr, "reading {} images of '{}' ({} mask pixels)\n", all.size(), args.dir,
-                   capture.pixels.size());
-    std::vector<CaptureImage> images = readCaptureImages(capture, all, read, args.threads);
-    const std::vector<CaptureImage> heldOutImages(images.begin() + std::ptrdiff_t(lights.size()),
-                                                  images.end());
-    images.resize(lights.size());
-    const CaptureFit fit = fitCapture(capture, images, heldOutImages, options);
+void writeCaptureFit(const CaptureRun& run, const CaptureFitInputs& inputs, const std::string& loss,
+                     const std::string& dir) {
+    const Capture& capture = run.capture;
+    const CaptureFit& fit = run.fit;
     std::vector<PhongMaterial> rows = {fit.phong.materials[0].material()};
     if (fit.lambertian) rows.push_back(fit.lambertian->materials[0].material());
-
     nlohmann::json report = toJson(fit.phong, {"capture"});
-    report["capture"] = {{"dir", args.dir},
+    report["capture"] = {{"dir", inputs.dir},
                          {"mask", capture.maskPath},
                          {"normals", capture.normalsPath},
                          {"mask_pixels", capture.pixels.size()},
-                         {"lights", lightNumbers(capture, lights)},
-                         {"holdout_lights", lightNumbers(capture, holdout)}};
+                         {"lights", lightNumbers(capture, run.lights)},
+                         {"holdout_lights", lightNumbers(capture, run.holdout)}};
     report["model"] = {{"kind", "direct light on known normals"},
                        {"view", "orthographic, direction (0, 0, 1) in the camera frame"},
                        {"lights", "directional; each image divided by its light's intensity"},
@@ -199,8 +166,8 @@ FitResult runCaptureFit(const CaptureArgs& args) {
                        {"lambertian_lobes", {"diffuse"}},
                        {"bounces", 1},
                        {"max_depth", 2},
-                       {"min_cos", args.minCos},
-                       {"loss", args.loss}};
+                       {"min_cos", inputs.fit.minCos},
+                       {"loss", loss}};
     report["left_out"] = {
         "path tracing: no rays are traced; each (pixel, light) pair is the light's direct "
         "reflection on the known normal",
@@ -219,7 +186,7 @@ FitResult runCaptureFit(const CaptureArgs& args) {
     // compare.png shows a typical held-out light, or without a hold-out the middle fitted one.
     const CaptureModel& shown = fit.heldOut ? *fit.heldOut : fit.model;
     const std::size_t view = fit.holdout ? medianView(*fit.holdout) : shown.lights.size() / 2;
-    const std::vector<CaptureImage>& shownImages = fit.heldOut ? heldOutImages : images;
+    const std::vector<CaptureImage>& shownImages = fit.heldOut ? run.heldOutImages : run.images;
     const CaptureImage& shownImage =
         *std::find_if(shownImages.begin(), shownImages.end(),
                       [&](const CaptureImage& i) { return i.light == shown.lights[view]; });
@@ -232,94 +199,15 @@ FitResult runCaptureFit(const CaptureArgs& args) {
                          {"columns", {"observed", "predicted", "signed error"}}};
     const cv::Mat compare = comparison(capture, shownImage, shown, view, rows);
 
-    fs::create_directories(args.output);
-    const fs::path dir(args.output);
-    writeAtomically(dir / "fit.json", [&](const fs::path& tmp) {
-        std::ofstream out(tmp);
-        out << report.dump(2) << "\n";
-        out.close();
-        if (!out) throw Error(fmt::format("{}: could not be written", tmp.string()));
+    fs::create_directories(dir);
+    const fs::path out(dir);
+    writeAtomically(out / "fit.json", [&](const fs::path& tmp) {
+        std::ofstream file(tmp);
+        file << report.dump(2) << "\n";
+        file.close();
+        if (!file) throw Error(fmt::format("{}: could not be written", tmp.string()));
     });
-    writePng(compare, (dir / "compare.png").string());
-
-    const MaterialFit& m = fit.phong.materials[0];
-    fmt::print("capture: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n",
-               formatColor(m.kd, m.kdStd, args.grey), formatColor(m.ks, m.ksStd, args.grey), m.n,
-               m.nStd,
-               m.unconstrained.empty() ? ""
-                                       : fmt::format("  (unconstrained, held at start: {})",
-                                                     fmt::join(m.unconstrained, ", ")));
-    fmt::print(
-        "fitted {} pairs of {} lights: rmse {:.5g}; left out {} pairs ({} below "
-        "--min-cos, {} clipped, {} not finite, {} facing away)\n",
-        fit.model.used, lights.size(), fit.phong.rmse, fit.model.pairs - fit.model.used,
-        fit.model.leftOut.at("below_min_cos"), fit.model.leftOut.at("clipped"),
-        fit.model.leftOut.at("non_finite"), fit.model.leftOut.at("facing_away"));
-    double seconds = fit.phong.timeSeconds;
-    if (fit.holdout) {
-        const MaterialFit& lam = fit.lambertian->materials[0];
-        fmt::print("lambertian only: kd = {}\n", formatColor(lam.kd, lam.kdStd, args.grey));
-        fmt::print(
-            "held out {} lights ({} pairs): rmse {:.5g} (relative {:.3g}), Lambertian "
-            "only {:.5g} (relative {:.3g})\n",
-            holdout.size(), fit.holdout->phong.pairs, fit.holdout->phong.rmse,
-            fit.holdout->phong.relRmse, fit.holdout->lambertian.rmse,
-            fit.holdout->lambertian.relRmse);
-        seconds += fit.lambertian->timeSeconds;
-    }
-    fmt::print(
-        "{} in {:.2f} s; left out: path tracing and indirect light (direct light on known "
-        "normals, one bounce) -> {}\n",
-        fit.phong.converged ? "converged" : "not converged", seconds, (dir / "fit.json").string());
-    return fit.phong;
-}
-
-void addCaptureOptions(CLI::App& fit, CaptureArgs& args) {
-    fit.add_option("--capture", args.dir,
-                   "photometric-stereo folder (DiLiGenT layout: filenames.txt, "
-                   "light_directions.txt, light_intensities.txt, mask.png, normals.exr) instead of "
-                   "--view; --mask replaces its mask.png");
-    fit.add_option(
-        "--lights", args.lights,
-        "with --capture: lights to fit, e.g. 1-48 or 1-10,20 (default: all not held out)");
-    fit.add_option("--holdout", args.holdout,
-                   "with --capture: lights to predict and not fit, e.g. 49-96");
-    fit.add_option("--min-cos", args.minCos,
-                   "with --capture: leave out pairs with n.l below this (shadows, grazing "
-                   "light; default 0.05)");
-}
-
-bool runCaptureFitIfGiven(const CLI::App& fit, const CaptureArgs& capture, const FitArgs& shared) {
-    if (shared.views.empty() == capture.dir.empty())
-        throw Error("fit needs exactly one of --view SCENE.xml:IMAGE and --capture DIR");
-    const auto reject = [&](std::initializer_list<const char*> options, const char* why) {
-        for (const char* option : options)
-            if (fit.count(option) > 0) throw Error(fmt::format("{} {}", option, why));
-    };
-    if (capture.dir.empty()) {
-        reject({"--lights", "--holdout", "--min-cos"}, "applies to --capture, not to --view");
-        return false;
-    }
-    reject({"--fit-exposure"},
-           "does not apply to --capture: its images are divided by calibrated light "
-           "intensities and lit directly only, so an exposure cannot be told from kd and ks");
-    reject({"--material", "--spp", "--rounds", "--kd", "--ks", "--n", "-D", "--seed",
-            "--ignore-nonfinite"},
-           "applies to scene fits (--view), not to --capture");
-    CaptureArgs args = capture;
-    args.mask = shared.mask;
-    args.output = shared.output;
-    args.saturation = shared.saturation;
-    args.gamma = shared.gamma;
-    args.srgb = shared.srgb;
-    args.linear = shared.linear;
-    args.grey = shared.grey;
-    args.loss = shared.loss;
-    args.threads = shared.threads;
-    args.quiet = shared.quiet;
-    args.verbose = shared.verbose;
-    runCaptureFit(args);
-    return true;
+    writePng(compare, (out / "compare.png").string());
 }
 
 }  // namespace phongfit

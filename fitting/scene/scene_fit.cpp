@@ -1,0 +1,226 @@
+#include "scene_fit.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
+#include "comparison_image.h"
+#include "error.h"
+#include "fit_report.h"
+#include "scene_parser.h"
+#include "scene_writer.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A scene whose only object is one sphere (convex: it cannot see itself) lit only by point and
+// directional lights has no indirect light at all: direct illumination (depth 2) is exact.
+bool directLightIsExact(const Scene& scene) {
+    if (scene.shapes.size() != 1 || scene.shapes[0].type != ShapeDesc::Type::Sphere ||
+        scene.shapes[0].areaRadiance)
+        return false;
+    return std::all_of(scene.emitters.begin(), scene.emitters.end(), [](const EmitterDesc& e) {
+        return e.type == EmitterDesc::Type::Point || e.type == EmitterDesc::Type::Directional;
+    });
+}
+
+std::vector<int> fittedBsdfs(const Scene& scene, const std::string& scenePath,
+                             const std::vector<std::string>& materials) {
+    std::vector<int> fitted;
+    for (const std::string& id : materials) {
+        const int b = scene.findBsdf(id);
+        if (b < 0) {
+            std::vector<std::string> ids;
+            for (const BsdfDesc& d : scene.bsdfs)
+                if (!d.id.empty()) ids.push_back(d.id);
+            throw Error(fmt::format("{}: no bsdf with id '{}' (ids in the file: {})", scenePath, id,
+                                    fmt::join(ids, ", ")));
+        }
+        if (scene.bsdfs[b].type != "phong")
+            throw Error(
+                fmt::format("{}: bsdf '{}' is '{}', not 'phong': only phong materials are "
+                            "fitted",
+                            scene.bsdfs[b].loc.str(), id, scene.bsdfs[b].type));
+        fitted.push_back(b);
+    }
+    return fitted;
+}
+
+// The image as an observation: non-finite, masked and clipped pixels left out and counted.
+void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
+             const std::vector<std::uint8_t>* mask) {
+    Observation& o = v.observation;
+    o.width = image.width;
+    o.height = image.height;
+    o.rgb = image.rgb;
+    o.valid.assign(image.pixelCount(), 1);
+    for (std::size_t p = 0; p < image.pixelCount(); ++p) {
+        const float* c = &o.rgb[3 * p];
+        if (!std::isfinite(c[0]) || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
+            if (!in.ignoreNonFinite)
+                throw Error(
+                    fmt::format("{}: pixel ({}, {}) is not finite (use --ignore-nonfinite "
+                                "to leave such pixels out)",
+                                v.imagePath, p % o.width, p / o.width));
+            o.valid[p] = 0;
+            o.rgb[3 * p] = o.rgb[3 * p + 1] = o.rgb[3 * p + 2] = 0;
+            ++v.nonFinite;
+        } else if (mask && !(*mask)[p]) {
+            o.valid[p] = 0;
+            ++v.masked;
+        } else if ((!image.clipped.empty() && image.clipped[p]) ||
+                   (in.saturation && std::max({c[0], c[1], c[2]}) >= *in.saturation)) {
+            o.valid[p] = 0;
+            ++v.clipped;
+        }
+    }
+    if (std::none_of(o.valid.begin(), o.valid.end(), [](std::uint8_t x) { return x != 0; }))
+        throw Error(fmt::format("{}: every pixel is masked, clipped or not finite: nothing to fit",
+                                v.imagePath));
+}
+
+SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
+                   const std::vector<std::uint8_t>* mask) {
+    SceneView v;
+    v.scenePath = spec.scenePath;
+    v.imagePath = spec.imagePath;
+    Scene scene = loadScene(v.scenePath, in.defines);
+    v.fittedBsdfs = fittedBsdfs(scene, v.scenePath, in.materials);
+    if (directLightIsExact(scene)) {
+        v.maxDepth = 2;
+        v.depthNote =
+            "indirect bounces (one convex object under point/directional lights: direct "
+            "light is exact, depth 2)";
+    } else {
+        v.depthNote = "nothing (path tracing at the scene's depth)";
+    }
+    const Image image = readImage(v.imagePath, in.decoding);
+    const SensorDesc& film = scene.sensor;
+    if (image.width != film.width || image.height != film.height)
+        throw Error(fmt::format("{}: image is {}x{} but the film of {} is {}x{}", v.imagePath,
+                                image.width, image.height, v.scenePath, film.width, film.height));
+    observe(v, image, in, mask);
+    v.renderer = std::make_unique<Renderer>(std::move(scene));
+    return v;
+}
+
+// observed | re-rendered with the fitted parameters | signed error (comparison_image.h). Rendered
+// anew with more paths than a round records, so the middle column shows the model rather than the
+// recording's noise.
+cv::Mat comparison(const SceneView& v, const std::vector<PhongMaterial>& fitted, double exposure,
+                   const SceneRecording& recording, int compareSpp) {
+    Scene scene = v.renderer->scene();
+    for (std::size_t s = 0; s < fitted.size(); ++s)
+        scene.bsdfs[v.fittedBsdfs[s]].params = fitted[s];
+    RenderOptions options;
+    options.spp = compareSpp;
+    options.seed = recording.seed + 7919;  // independent of every recording
+    options.threads = recording.threads;
+    options.maxDepth = v.maxDepth;
+    options.quiet = true;
+    const RenderResult rendered = Renderer(std::move(scene)).render(options);
+    ComparisonPanels panels;
+    panels.width = v.observation.width;
+    panels.height = v.observation.height;
+    const std::size_t pixels = std::size_t(panels.width) * std::size_t(panels.height);
+    panels.predicted.emplace_back(pixels);
+    for (std::size_t p = 0; p < pixels; ++p) {
+        panels.observed.push_back(Color3(v.observation.rgb[3 * p], v.observation.rgb[3 * p + 1],
+                                         v.observation.rgb[3 * p + 2]));
+        panels.state.push_back(v.observation.valid[p] ? ComparePixel::Compared
+                                                      : ComparePixel::LeftOut);
+        panels.predicted[0][p] = exposure * Color3(rendered.rgb[3 * p], rendered.rgb[3 * p + 1],
+                                                   rendered.rgb[3 * p + 2]);
+    }
+    return comparisonImage(panels);
+}
+
+}  // namespace
+
+SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
+    if (inputs.views.empty()) throw Error("the fit needs at least one --view SCENE.xml:IMAGE");
+    if (inputs.materials.empty()) throw Error("--view needs --material ID (the phong bsdf to fit)");
+    SceneFitProblem problem;
+    problem.materials = inputs.materials;
+    problem.defines = inputs.defines;
+    std::optional<std::vector<std::uint8_t>> mask;
+    for (const SceneFitInputs::View& spec : inputs.views) {
+        if (!inputs.maskPath.empty() && !mask) {
+            // The mask is sized by the first view's film.
+            const Scene first = loadScene(spec.scenePath, inputs.defines);
+            mask = readMask(inputs.maskPath, first.sensor.width, first.sensor.height);
+        }
+        problem.views.push_back(loadView(spec, inputs, mask ? &*mask : nullptr));
+    }
+    for (int b : problem.views[0].fittedBsdfs) {
+        PhongMaterial m = problem.views[0].renderer->scene().bsdfs[b].params;
+        if (inputs.kd) m.kd = *inputs.kd;
+        if (inputs.ks) m.ks = *inputs.ks;
+        if (inputs.n) m.n = *inputs.n;
+        validatePhong(m, "start value (--kd, --ks, --n)");
+        problem.start.push_back(m);
+    }
+    return problem;
+}
+
+FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
+                   const FitOptions& options) {
+    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
+                                    int round) -> PathSet {
+        const SceneView& v = problem.views[view];
+        RecordOptions o;
+        o.spp = recording.spp;
+        o.directSpp = recording.directSpp;
+        o.seed = recording.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
+        o.threads = recording.threads;
+        o.maxDepth = v.maxDepth;
+        o.fittedBsdfs = v.fittedBsdfs;
+        o.theta0 = theta0;
+        return v.renderer->record(o);
+    };
+    std::vector<Observation> observations;
+    for (const SceneView& v : problem.views) observations.push_back(v.observation);
+    return fitMaterials(observations, record, problem.start, options);
+}
+
+void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
+                   const SceneRecording& recording, int compareSpp, const std::string& dir) {
+    std::vector<PhongMaterial> fitted;
+    for (const MaterialFit& m : result.materials) fitted.push_back(m.material());
+    nlohmann::json report = toJson(result, problem.materials);
+    report["record_spp"] = recording.spp;
+    report["seed"] = recording.seed;
+    for (const SceneView& v : problem.views) {
+        report["views"].push_back({{"scene", v.scenePath},
+                                   {"image", v.imagePath},
+                                   {"max_depth", v.renderer->effectiveMaxDepth(v.maxDepth)},
+                                   {"left_out", v.depthNote},
+                                   {"pixels_clipped", v.clipped},
+                                   {"pixels_masked", v.masked},
+                                   {"pixels_non_finite", v.nonFinite}});
+    }
+    fs::create_directories(dir);
+    const fs::path out(dir);
+    writeAtomically(out / "fit.json",
+                    [&](const fs::path& tmp) { std::ofstream(tmp) << report.dump(2) << "\n"; });
+    std::map<std::string, PhongMaterial> byId;
+    for (std::size_t s = 0; s < fitted.size(); ++s) byId[problem.materials[s]] = fitted[s];
+    const double exposure = result.exposure ? result.exposure->value : 1.0;
+    for (std::size_t k = 0; k < problem.views.size(); ++k) {
+        const std::string suffix = k == 0 ? "" : fmt::format("_view{}", k + 1);
+        writeSceneWithMaterials(problem.views[k].scenePath, problem.defines, byId,
+                                (out / ("fitted" + suffix + ".xml")).string());
+        writePng(comparison(problem.views[k], fitted, exposure, recording, compareSpp),
+                 (out / ("compare" + suffix + ".png")).string());
+    }
+}
+
+}  // namespace phongfit

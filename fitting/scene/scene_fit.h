@@ -1,0 +1,74 @@
+// Fitting phong materials of a scene to images of it: the pipeline that `fit --view`, `demo` and
+// `bench fit` share, in three typed steps (read and check everything, fit, write the outputs), so
+// a caller times or skips each on its own. Nothing here parses command-line text.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fitter.h"
+#include "image.h"
+#include "renderer.h"
+
+namespace phongfit {
+
+struct SceneFitInputs {
+    struct View {
+        std::string scenePath, imagePath;
+    };
+    std::vector<View> views;                     // fitted jointly
+    std::vector<std::string> materials;          // ids of phong bsdfs, one slot each, in order
+    std::map<std::string, std::string> defines;  // the scenes' `default` overrides
+    std::string maskPath;  // empty: none; else a PNG sized as the first view's film
+    ReadOptions decoding;
+    std::optional<double> saturation;  // pixels with a channel at or above it are left out
+    bool ignoreNonFinite = false;      // leave NaN/Inf pixels out instead of failing
+    // Start values replacing the first view's scene values, for every material.
+    std::optional<Color3> kd, ks;
+    std::optional<double> n;
+};
+
+// One view, read and checked.
+struct SceneView {
+    std::string scenePath, imagePath;
+    std::unique_ptr<Renderer> renderer;
+    std::vector<int> fittedBsdfs;  // per slot
+    int maxDepth = -2;             // what is recorded (RecordOptions::maxDepth)
+    std::string depthNote;         // what the pipeline left out, in words
+    Observation observation;
+    std::size_t clipped = 0, masked = 0, nonFinite = 0;
+};
+
+struct SceneFitProblem {
+    std::vector<SceneView> views;
+    std::vector<std::string> materials;
+    std::map<std::string, std::string> defines;
+    std::vector<PhongMaterial> start;  // per slot
+};
+
+// How each round records its paths.
+struct SceneRecording {
+    int spp = 4;
+    int directSpp = 0;  // RecordOptions::directSpp
+    std::uint64_t seed = 0;
+    int threads = 0;
+};
+
+// Reads and checks every input. Throws Error naming the file and what is allowed.
+SceneFitProblem loadSceneFit(const SceneFitInputs& inputs);
+
+// The rounds: records each view at the current estimate and fits (fitMaterials).
+FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
+                   const FitOptions& options);
+
+// DIR/fit.json, fitted.xml (fitted_view2.xml, ...) and compare.png (compare_view2.png, ...), the
+// views re-rendered at the fitted parameters with `compareSpp` paths per pixel. DIR is created.
+void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
+                   const SceneRecording& recording, int compareSpp, const std::string& dir);
+
+}  // namespace phongfit

@@ -1,0 +1,48 @@
+#include "fit_printing.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <filesystem>
+
+#include "comparison_image.h"
+
+namespace phongfit {
+
+void printRound(const FitRound& r, const SceneFitProblem& problem, bool fitExposure) {
+    std::string params;
+    for (std::size_t s = 0; s < r.materials.size(); ++s)
+        params += fmt::format("  {}: kd {:.4g} ks {:.4g} n {:.4g}", problem.materials[s],
+                              r.materials[s].kd.mean(), r.materials[s].ks.mean(), r.materials[s].n);
+    if (fitExposure) params += fmt::format("  exposure {:.4g}", r.exposure.value);
+    fmt::print(stderr,
+               "round {}: rmse {:.5g}, {} iterations of {:.3f} s, {:.2f} s, paths {:.1f} MB, "
+               "peak {:.0f} MB{}\n",
+               r.round + 1, r.rmse, r.iterations, r.secondsPerIteration, r.timeSeconds,
+               r.recordedBytes / 1e6, r.peakMemoryBytes / 1e6, params);
+}
+
+void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,
+                   const std::string& dir) {
+    for (std::size_t s = 0; s < result.materials.size(); ++s) {
+        const MaterialFit& m = result.materials[s];
+        fmt::print("{}: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n", problem.materials[s],
+                   formatColor(m.kd, m.kdStd, grey), formatColor(m.ks, m.ksStd, grey), m.n, m.nStd,
+                   m.unconstrained.empty() ? ""
+                                           : fmt::format("  (unconstrained, held at start: {})",
+                                                         fmt::join(m.unconstrained, ", ")));
+    }
+    if (result.exposure)
+        fmt::print("exposure = {:.5g} ± {:.2g}{}\n", result.exposure->value, result.exposure->std,
+                   result.exposure->unconstrained
+                       ? "  (unconstrained: the images cannot tell it from the scale of kd and "
+                         "ks; held where the start materials match their brightness, or as far "
+                         "above as kd + ks <= 1 needs)"
+                       : "");
+    fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
+               result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
+               result.converged ? " (converged)" : " (not converged)", result.timeSeconds,
+               problem.views[0].depthNote, (std::filesystem::path(dir) / "fit.json").string());
+}
+
+}  // namespace phongfit

@@ -1,0 +1,19 @@
+// What `fit` and `demo` print of a scene fit: the progress line per round and the result lines.
+#pragma once
+
+#include <string>
+
+#include "fitter.h"
+#include "scene_fit.h"
+
+namespace phongfit {
+
+// One line per round on stderr, naming the materials: rmse, iterations, time, memory, values.
+void printRound(const FitRound& round, const SceneFitProblem& problem, bool fitExposure);
+
+// Per material kd, ks, n with standard errors (and what is unconstrained), the exposure if
+// fitted, then the rmse, rounds, convergence, time, what was left out and where fit.json is.
+void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,
+                   const std::string& dir);
+
+}  // namespace phongfit
