@@ -5,6 +5,9 @@
 # 10 s), out-of-memory or sanitizer report, and prints the input that caused it: make that input a
 # regression test (a gtest case) once fixed. Arguments: target names (default: all), e.g.
 #   FUZZ_SECONDS=600 scripts/fuzz.sh scene_parser
+# Long exploratory runs that go on past a finding and keep every one:
+#   FUZZ_SECONDS=3600 FUZZ_FLAGS="-fork=1 -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1" \
+#     scripts/fuzz.sh exr png
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${PHONGFIT_FUZZ_DIR:-$root/build-fuzz}
@@ -39,6 +42,7 @@ run_target() {
   mkdir -p "$build/corpus/$target"
   "$build/fuzz/${target}_fuzz" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2560 \
     -malloc_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$build/artifacts/$target-" \
+    ${FUZZ_FLAGS:-} \
     "$build/corpus/$target" "$root/fuzz/corpus/$seeds" "${extra[@]}" >"$logs/$target.log" 2>&1
 }
 

@@ -25,6 +25,8 @@ std::int64_t fileBytes(const std::string& path) {
 
 void requireDeclaredPixels(const std::string& path, std::int64_t width, std::int64_t height,
                            std::int64_t fileSize) {
+    if (width < 0 || height < 0)
+        throw Error(fmt::format("cannot read image '{}': its header is cut short", path));
     if (width > kMaxImagePixels || height > kMaxImagePixels || width * height > kMaxImagePixels)
         throw Error(fmt::format("image '{}' is {}x{} pixels (allowed: up to {} pixels)", path,
                                 width, height, kMaxImagePixels));
@@ -48,7 +50,7 @@ void requireBlockBytes(const std::string& path, const char* block, std::int64_t 
 thread_local std::string exrMessage;
 
 void recordExrError(exr_const_context_t, exr_result_t code, const char* message) {
-    exrMessage = message ? message : exr_get_default_error_message(code);
+    if (exrMessage.empty()) exrMessage = message ? message : exr_get_default_error_message(code);
 }
 
 void* cappedExrAlloc(std::size_t bytes) {
@@ -64,7 +66,10 @@ public:
         init.free_fn = std::free;
         exrMessage.clear();
         const exr_result_t result = exr_start_read(&context_, path.c_str(), &init);
-        if (result != EXR_ERR_SUCCESS) {
+        // OpenEXRCore reports some inconsistencies (an attribute of the wrong size) and reads on
+        // with its own guess, where OpenEXR's InputFile may guess otherwise: any complaint
+        // refuses the file, so both libraries read the header that was checked.
+        if (result != EXR_ERR_SUCCESS || !exrMessage.empty()) {
             exr_finish(&context_);
             throw Error(fmt::format(
                 "cannot read EXR image '{}': {}", path,
@@ -90,10 +95,13 @@ private:
 
 // ---- PNG, JPEG, TIFF: the few header fields that give the size, read at their offsets.
 
+constexpr std::uint64_t kBeyondAnyFile = std::uint64_t(1) << 62;
+
 class HeaderBytes {
 public:
     explicit HeaderBytes(const std::string& path) : in_(path, std::ios::binary) {}
-    // The unsigned integer of `bytes` bytes at `offset`, or -1 past the end of the file.
+    // The unsigned integer of `bytes` bytes at `offset`, or -1 past the end of the file (or when
+    // it is 2^62 or more).
     std::int64_t uint(std::int64_t offset, int bytes, bool bigEndian) {
         std::array<unsigned char, 8> b{};
         in_.clear();
@@ -102,7 +110,9 @@ public:
         std::uint64_t value = 0;
         for (int i = 0; i < bytes; ++i)
             value |= std::uint64_t(b[bigEndian ? bytes - 1 - i : i]) << (8 * i);
-        return value > std::uint64_t(INT64_MAX) ? INT64_MAX : std::int64_t(value);
+        // No file is 2^62 bytes long: larger values are offsets past its end, and stay far from
+        // overflow in the sums made of them.
+        return value >= kBeyondAnyFile ? -1 : std::int64_t(value);
     }
 
 private:
@@ -242,13 +252,14 @@ void requireLdrWithinLimits(const std::string& path, const char* what, bool pngO
     if (tiff) requireTiffWithinLimits(path, what, size);
 }
 
-void requireExrWithinLimits(const std::string& path) {
+ExrWindow requireExrWithinLimits(const std::string& path) {
     const std::int64_t fileSize = fileBytes(path);
     const ExrHeaders headers(path);
     const exr_const_context_t context = headers.context();
     int parts = 0;
     headers.check(exr_get_count(context, &parts));
     std::int64_t chunks = 0;
+    ExrWindow first;
     for (int part = 0; part < parts; ++part) {
         exr_storage_t storage;
         headers.check(exr_get_storage(context, part, &storage));
@@ -259,6 +270,7 @@ void requireExrWithinLimits(const std::string& path) {
                 path));
         exr_attr_box2i_t window;
         headers.check(exr_get_data_window(context, part, &window));
+        if (part == 0) first = {window.min.x, window.min.y, window.max.x, window.max.y};
         const std::int64_t width = std::int64_t(window.max.x) - window.min.x + 1;
         const std::int64_t height = std::int64_t(window.max.y) - window.min.y + 1;
         requireDeclaredPixels(path, width, height, fileSize);
@@ -285,6 +297,7 @@ void requireExrWithinLimits(const std::string& path) {
             "image '{}' declares {} chunks in a file of {} bytes (each takes at least 16 bytes); "
             "the file is truncated or corrupt",
             path, chunks, fileSize));
+    return first;
 }
 
 }  // namespace phongfit

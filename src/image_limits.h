@@ -21,11 +21,18 @@ constexpr std::int64_t kMaxBlockBytes = std::int64_t(128) << 20;
 // EXR header allocations (attributes, channel lists): far above any real header.
 constexpr std::int64_t kMaxExrHeaderAllocation = std::int64_t(64) << 20;
 
+// An EXR part's data window, as OpenEXRCore read it.
+struct ExrWindow {
+    int minX = 0, minY = 0, maxX = -1, maxY = -1;
+    bool operator==(const ExrWindow&) const = default;
+};
+
 // Throws Error naming the file, the declared size and the limit when the EXR file's header
 // (every part of a multi-part file) declares more than the limits allow, or when its chunk offset
 // tables could not fit in the file. Throws Error, too, when OpenEXR cannot parse the header, and
-// when part 0 holds deep data (not an image phongfit reads).
-void requireExrWithinLimits(const std::string& path);
+// when part 0 holds deep data (not an image phongfit reads). Returns part 0's data window, which
+// the reader compares with what OpenEXR's InputFile reads.
+ExrWindow requireExrWithinLimits(const std::string& path);
 
 // The same for PNG, JPEG and TIFF: throws Error unless the file's first bytes are those of one of
 // these formats (only PNG when `pngOnly`) and its header's declared size is within the limits.

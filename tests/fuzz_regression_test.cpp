@@ -105,5 +105,29 @@ TEST(ObjMeshFuzz, HugeAndTinyNormalsAreNormalised) {
               std::string::npos);
 }
 
+// Found by the fuzzers once the header limits (image_limits.h) were in; the inputs are kept in
+// tests/data/fuzz/ and as fuzz seeds.
+std::string fuzzInput(const std::string& name) {
+    return std::string(PHONGFIT_TEST_DATA_DIR) + "/fuzz/" + name;
+}
+
+// exr_fuzz (a 10 s timeout under ASan, 1.2 GB resident without): dataWindow declared 59 bytes
+// long. OpenEXRCore complained and read a 64 x 64 window; OpenEXR's InputFile read 16 of the 59
+// bytes as a window of a million by five pixels and allocated for that. Any complaint of
+// OpenEXRCore now refuses the file, and the two libraries' windows must agree.
+TEST(ExrFuzz, AttributeOfTheWrongSizeIsRefusedBeforeOpenExrAllocates) {
+    const std::string path = fuzzInput("exr_attribute_size_mismatch.exr");
+    const std::string e = errorOf([&] { readImage(path); });
+    EXPECT_NE(e.find("cannot read EXR image '" + path + "'"), std::string::npos) << e;
+    EXPECT_NE(e.find("dataWindow"), std::string::npos) << e;
+}
+
+// png_fuzz (UBSan: signed overflow): a BigTIFF whose first directory offset is near 2^64.
+TEST(PngFuzz, TiffDirectoryOffsetNearTwoToThe64IsRefused) {
+    const std::string path = fuzzInput("tiff_offset_overflow.tif");
+    const std::string e = errorOf([&] { readImage(path); });
+    EXPECT_NE(e.find("a TIFF's first directory lies within the file"), std::string::npos) << e;
+}
+
 }  // namespace
 }  // namespace phongfit
