@@ -381,12 +381,8 @@ void runBenchFit(const BenchFitOptions& o) {
             throw Error(fmt::format("--spp-per-round {}: each value must be in [1, 4096]", spp));
     if (!(o.failThreshold > 0))
         throw Error(fmt::format("--fail-threshold {}: must be > 0", o.failThreshold));
+    requireOutputDirectory(o.output);
     const fs::path dir(o.output);
-    if (fs::exists(dir) && !fs::is_directory(dir))
-        throw Error(fmt::format("-o '{}': exists and is not a directory", dir.string()));
-    if (!fs::is_directory(fs::absolute(dir).parent_path()))
-        throw Error(fmt::format("-o '{}': directory '{}' does not exist", dir.string(),
-                                fs::absolute(dir).parent_path().string()));
     const std::vector<DatasetSample> samples = readDataset(o.dataset);
     fs::create_directories(dir);
 

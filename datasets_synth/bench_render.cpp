@@ -73,12 +73,8 @@ cv::Mat plot(const std::string& sceneName, const std::vector<BenchRenderRow>& ro
 std::vector<BenchRenderRow> runBenchRender(const BenchRenderOptions& options) {
     if (!(options.budget > 0))
         throw Error(fmt::format("--budget {}: must be > 0 seconds", options.budget));
+    requireOutputDirectory(options.output);
     const fs::path dir(options.output);
-    if (fs::exists(dir) && !fs::is_directory(dir))
-        throw Error(fmt::format("-o '{}': exists and is not a directory", dir.string()));
-    if (!fs::is_directory(fs::absolute(dir).parent_path()))
-        throw Error(fmt::format("-o '{}': directory '{}' does not exist", dir.string(),
-                                fs::absolute(dir).parent_path().string()));
     const Renderer renderer(loadScene(options.scene, parseDefines(options.defines)));
     const int width = renderer.scene().sensor.width, height = renderer.scene().sensor.height;
     Image reference;
