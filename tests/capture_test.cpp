@@ -1,6 +1,7 @@
 // Photometric-stereo captures: the loader and its errors, recovery of known parameters from a
 // synthetic capture, the real DiLiGenT ball (held-out prediction against Lambertian, stability of
-// the exponent between halves of the lights), and `phongfit fit --capture` end to end.
+// the exponent between halves of the lights), (`phongfit fit --capture` end to end:
+// e2e/fit_capture_test.cpp).
 #include "capture.h"
 
 #include <fmt/format.h>
@@ -21,7 +22,7 @@
 #include "error_of.h"
 #include "image.h"
 #include "phong_brdf.h"
-#include "subprocess.h"
+#include "synthetic_capture.h"
 #include "temp_dir.h"
 
 namespace phongfit {
@@ -30,84 +31,8 @@ namespace {
 namespace fs = std::filesystem;
 
 const std::string kBall = PHONGFIT_BALL_DIR;
-
-// A sphere under distant lights, rendered with the project's BRDF on the known normals, with
-// Gaussian noise, written as linear 16-bit PNGs (so the brightest highlights clip at 65535).
-struct Synthetic {
-    static constexpr int kSize = 48;
-    static constexpr int kLights = 30;
-    static constexpr double kNoise = 0.002;  // in 16-bit linear units, before quantisation
-    PhongMaterial truth;
-
-    Synthetic() {
-        truth.kd = Color3(0.4, 0.3, 0.2);
-        truth.ks = Color3(0.2, 0.25, 0.3);
-        truth.n = 60;
-    }
-
-    static Vec3d lightDirection(int i) {
-        // Rings of lights at 10 to 50 degrees from the view, as in a photometric-stereo dome.
-        const double theta = (10 + 40 * double(i % 5) / 4) * kPi / 180;
-        const double phi = 2 * kPi * i / kLights + i % 5;
-        return Vec3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
-                     std::cos(theta));
-    }
-
-    static std::optional<Vec3d> normal(int x, int y) {
-        const double r = 0.45 * kSize;
-        const double nx = (x + 0.5 - kSize / 2.0) / r, ny = (kSize / 2.0 - y - 0.5) / r;
-        const double z2 = 1 - nx * nx - ny * ny;
-        if (z2 <= 0.01) return std::nullopt;
-        return Vec3d(nx, ny, std::sqrt(z2));
-    }
-
-    void write(const fs::path& dir) const {
-        std::mt19937 rng(7);
-        std::normal_distribution<double> noise(0, kNoise);
-        std::uniform_real_distribution<double> intensity(0.25, 0.45);
-        Image normals(kSize, kSize);
-        cv::Mat mask(kSize, kSize, CV_8U, cv::Scalar(0));
-        for (int y = 0; y < kSize; ++y)
-            for (int x = 0; x < kSize; ++x)
-                if (const auto n = normal(x, y)) {
-                    normals.set(x, y, n->cast<float>().array());
-                    mask.at<uchar>(y, x) = 255;
-                }
-        writeExr(normals, (dir / "normals.exr").string());
-        cv::imwrite((dir / "mask.png").string(), mask);
-        std::ofstream names(dir / "filenames.txt"), directions(dir / "light_directions.txt"),
-            intensities(dir / "light_intensities.txt");
-        for (int i = 0; i < kLights; ++i) {
-            const Vec3d l = lightDirection(i);
-            const Color3 e(intensity(rng), intensity(rng), intensity(rng));
-            const std::string name = fmt::format("{:03d}.png", i + 1);
-            names << name << "\n";
-            directions << fmt::format("{} {} {}\n", l.x(), l.y(), l.z());
-            intensities << fmt::format("{} {} {}\n", e[0], e[1], e[2]);
-            cv::Mat image(kSize, kSize, CV_16UC3, cv::Scalar(0, 0, 0));
-            for (int y = 0; y < kSize; ++y)
-                for (int x = 0; x < kSize; ++x) {
-                    const auto n = normal(x, y);
-                    if (!n) continue;
-                    const Frame<double> frame(*n);
-                    const Vec3d wi = frame.toLocal(l), wo = frame.toLocal(Vec3d(0, 0, 1));
-                    const Color3 f = phongEval(truth, wi, wo);
-                    for (int c = 0; c < 3; ++c) {
-                        const double v = e[c] * std::max(wi.z(), 0.0) * f[c] + noise(rng);
-                        image.at<cv::Vec3w>(y, x)[2 - c] =
-                            cv::saturate_cast<ushort>(std::lround(65535 * std::clamp(v, 0.0, 1.0)));
-                    }
-                }
-            cv::imwrite((dir / name).string(), image);
-        }
-    }
-};
-
-std::vector<int> range(int first, int last, int step = 1) {
-    std::vector<int> v;
-    for (int i = first; i <= last; i += step) v.push_back(i);
-    return v;
-}
+using test::range;
+using test::Synthetic;
 
 using test::errorOf;
 
@@ -366,85 +291,5 @@ TEST(DiligentBall, ExponentIsStableBetweenOddAndEvenLights) {
         << "n = " << a.n << " ± " << a.nStd << " (odd lights) vs " << b.n << " ± " << b.nStd
         << " (even lights)";
 }
-
-class CaptureCommand : public CaptureTest {
-protected:
-    test::ProcessResult run(std::vector<std::string> args) const {
-        args.insert(args.begin(), PHONGFIT_EXE);
-        return test::runProcess(args);
-    }
-    std::string out(const std::string& name) const { return (dir_.path() / name).string(); }
-};
-
-TEST_F(CaptureCommand, WritesReportAndComparison) {
-    const auto r = run({"fit", "--capture", dir_.path().string(), "--lights", "1-20", "--holdout",
-                        "21-30", "--threads", "2", "-o", out("fit"), "--quiet"});
-    ASSERT_EQ(r.exitCode, 0) << r.err;
-    EXPECT_NE(r.out.find("capture: kd = "), std::string::npos) << r.out;
-    EXPECT_NE(r.out.find("held out 10 lights"), std::string::npos) << r.out;
-
-    const auto report = nlohmann::json::parse(std::ifstream(out("fit/fit.json")));
-    const auto& m = report["materials"]["capture"];
-    for (const char* key : {"kd", "ks", "kd_std", "ks_std"}) ASSERT_EQ(m[key].size(), 3u) << key;
-    EXPECT_NEAR(m["n"].get<double>(), Synthetic().truth.n, 0.1 * Synthetic().truth.n);
-    const auto& h = report["holdout"];
-    for (const char* key : {"rmse", "rel_rmse", "lambertian_rmse", "lambertian_rel_rmse"})
-        EXPECT_TRUE(h[key].is_number()) << key;
-    EXPECT_LT(h["rmse"].get<double>(), h["lambertian_rmse"].get<double>());
-    ASSERT_EQ(h["per_light"].size(), 10u);
-    EXPECT_EQ(h["per_light"][0]["light"], 21);
-    EXPECT_EQ(report["capture"]["lights"].size(), 20u);
-    EXPECT_EQ(report["model"]["lobes"], nlohmann::json({"diffuse", "specular"}));
-    EXPECT_FALSE(report["left_out"].empty());
-    EXPECT_GT(report["pairs"]["left_out"]["clipped"].get<int>(), 0);
-    EXPECT_EQ(report["lambertian"]["materials"]["capture"]["ks"], nlohmann::json({0, 0, 0}));
-
-    // Two rows (Phong, Lambertian) of three panels, cropped to the mask.
-    const cv::Mat compare = cv::imread(out("fit/compare.png"));
-    ASSERT_FALSE(compare.empty());
-    EXPECT_EQ(compare.cols % 3, 0);
-    EXPECT_EQ(compare.rows % 2, 0);
-    EXPECT_LE(compare.cols, 3 * Synthetic::kSize);
-}
-
-TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
-    cv::imwrite(out("012.png"),
-                cv::Mat(Synthetic::kSize, Synthetic::kSize, CV_16UC3, cv::Scalar(0, 0, 0)));
-    const std::string dir = dir_.path().string();
-    struct Case {
-        std::vector<std::string> args;
-        std::string fragment;
-    };
-    const std::vector<Case> cases = {
-        {{"--capture", dir}, out("012.png") + "' is black"},
-        {{"--capture", dir, "--lights", "1-11", "--holdout", "11-12"}, "light 11 is in both"},
-        {{"--capture", dir, "--lights", "1-31"}, "light 31 does not exist"},
-        {{"--capture", dir, "--holdout", "1-30"}, "none is left to fit"},
-        {{"--capture", dir, "--min-cos", "1"}, "--min-cos"},
-        {{"--capture", dir, "--spp", "4"}, "--spp applies to scene fits"},
-        // Every scene-only option is refused, not silently ignored (they form one option group).
-        {{"--capture", dir, "--direct-spp", "8"}, "--direct-spp applies to scene fits"},
-        {{"--capture", dir, "--compare-spp", "8"}, "--compare-spp applies to scene fits"},
-        {{"--capture", dir, "-D", "a=1"}, "-D applies to scene fits"},
-        {{"--capture", dir, "--rounds", "2"}, "--rounds applies to scene fits"},
-        {{"--view", "a.xml:b.exr", "--min-cos", "0.1"}, "--min-cos applies to --capture"},
-        {{"--view", "a.xml:b.exr", "--holdout", "1"}, "--holdout applies to --capture"},
-        {{"--capture", out("nowhere")}, "nowhere': no such folder"},
-        {{"--capture", dir, "--view", "a.xml:b.exr"}, "exactly one of --view"},
-        {{}, "exactly one of --view"},
-    };
-    for (const Case& c : cases) {
-        std::vector<std::string> args = {"fit"};
-        args.insert(args.end(), c.args.begin(), c.args.end());
-        args.insert(args.end(), {"-o", out("refused"), "--quiet"});
-        const auto r = run(args);
-        EXPECT_NE(r.exitCode, 0) << c.fragment;
-        EXPECT_NE(r.err.find(c.fragment), std::string::npos)
-            << "expected '" << c.fragment << "' in: " << r.err;
-        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-        EXPECT_FALSE(fs::exists(out("refused"))) << c.fragment;
-    }
-}
-
 }  // namespace
 }  // namespace phongfit

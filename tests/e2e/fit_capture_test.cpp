@@ -1,0 +1,105 @@
+// `phongfit fit --capture` end to end on a synthetic capture: fit.json and compare.png, and bad
+// input refused with one line and nothing written.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "subprocess.h"
+#include "synthetic_capture.h"
+#include "temp_dir.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+using test::Synthetic;
+
+class CaptureCommand : public ::testing::Test {
+protected:
+    void SetUp() override { Synthetic().write(dir_.path()); }
+    test::ProcessResult run(std::vector<std::string> args) const {
+        args.insert(args.begin(), PHONGFIT_EXE);
+        return test::runProcess(args);
+    }
+    std::string out(const std::string& name) const { return (dir_.path() / name).string(); }
+
+    test::TempDir dir_{"capture_command"};
+};
+
+TEST_F(CaptureCommand, WritesReportAndComparison) {
+    const auto r = run({"fit", "--capture", dir_.path().string(), "--lights", "1-20", "--holdout",
+                        "21-30", "--threads", "2", "-o", out("fit"), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("capture: kd = "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("held out 10 lights"), std::string::npos) << r.out;
+
+    const auto report = nlohmann::json::parse(std::ifstream(out("fit/fit.json")));
+    const auto& m = report["materials"]["capture"];
+    for (const char* key : {"kd", "ks", "kd_std", "ks_std"}) ASSERT_EQ(m[key].size(), 3u) << key;
+    EXPECT_NEAR(m["n"].get<double>(), Synthetic().truth.n, 0.1 * Synthetic().truth.n);
+    const auto& h = report["holdout"];
+    for (const char* key : {"rmse", "rel_rmse", "lambertian_rmse", "lambertian_rel_rmse"})
+        EXPECT_TRUE(h[key].is_number()) << key;
+    EXPECT_LT(h["rmse"].get<double>(), h["lambertian_rmse"].get<double>());
+    ASSERT_EQ(h["per_light"].size(), 10u);
+    EXPECT_EQ(h["per_light"][0]["light"], 21);
+    EXPECT_EQ(report["capture"]["lights"].size(), 20u);
+    EXPECT_EQ(report["model"]["lobes"], nlohmann::json({"diffuse", "specular"}));
+    EXPECT_FALSE(report["left_out"].empty());
+    EXPECT_GT(report["pairs"]["left_out"]["clipped"].get<int>(), 0);
+    EXPECT_EQ(report["lambertian"]["materials"]["capture"]["ks"], nlohmann::json({0, 0, 0}));
+
+    // Two rows (Phong, Lambertian) of three panels, cropped to the mask.
+    const cv::Mat compare = cv::imread(out("fit/compare.png"));
+    ASSERT_FALSE(compare.empty());
+    EXPECT_EQ(compare.cols % 3, 0);
+    EXPECT_EQ(compare.rows % 2, 0);
+    EXPECT_LE(compare.cols, 3 * Synthetic::kSize);
+}
+
+TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
+    cv::imwrite(out("012.png"),
+                cv::Mat(Synthetic::kSize, Synthetic::kSize, CV_16UC3, cv::Scalar(0, 0, 0)));
+    const std::string dir = dir_.path().string();
+    struct Case {
+        std::vector<std::string> args;
+        std::string fragment;
+    };
+    const std::vector<Case> cases = {
+        {{"--capture", dir}, out("012.png") + "' is black"},
+        {{"--capture", dir, "--lights", "1-11", "--holdout", "11-12"}, "light 11 is in both"},
+        {{"--capture", dir, "--lights", "1-31"}, "light 31 does not exist"},
+        {{"--capture", dir, "--holdout", "1-30"}, "none is left to fit"},
+        {{"--capture", dir, "--min-cos", "1"}, "--min-cos"},
+        {{"--capture", dir, "--spp", "4"}, "--spp applies to scene fits"},
+        // Every scene-only option is refused, not silently ignored (they form one option group).
+        {{"--capture", dir, "--direct-spp", "8"}, "--direct-spp applies to scene fits"},
+        {{"--capture", dir, "--compare-spp", "8"}, "--compare-spp applies to scene fits"},
+        {{"--capture", dir, "-D", "a=1"}, "-D applies to scene fits"},
+        {{"--capture", dir, "--rounds", "2"}, "--rounds applies to scene fits"},
+        {{"--view", "a.xml:b.exr", "--min-cos", "0.1"}, "--min-cos applies to --capture"},
+        {{"--view", "a.xml:b.exr", "--holdout", "1"}, "--holdout applies to --capture"},
+        {{"--capture", out("nowhere")}, "nowhere': no such folder"},
+        {{"--capture", dir, "--view", "a.xml:b.exr"}, "exactly one of --view"},
+        {{}, "exactly one of --view"},
+    };
+    for (const Case& c : cases) {
+        std::vector<std::string> args = {"fit"};
+        args.insert(args.end(), c.args.begin(), c.args.end());
+        args.insert(args.end(), {"-o", out("refused"), "--quiet"});
+        const auto r = run(args);
+        EXPECT_NE(r.exitCode, 0) << c.fragment;
+        EXPECT_NE(r.err.find(c.fragment), std::string::npos)
+            << "expected '" << c.fragment << "' in: " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_FALSE(fs::exists(out("refused"))) << c.fragment;
+    }
+}
+}  // namespace
+}  // namespace phongfit
