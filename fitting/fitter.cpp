@@ -20,14 +20,20 @@
 #include <thread>
 
 #include "box_manifold.h"
+#include "convergence.h"
 #include "error.h"
+#include "exposure_block.h"
+#include "fit_input.h"
 #include "identifiability.h"
 #include "least_squares_residual.h"
 #include "material_params.h"
 #include "moment_residual.h"
+#include "pixel_sums.h"
 #include "replay.h"
 #include "replay_jacobian.h"
+#include "round_paths.h"
 #include "uncertainty.h"
+#include "used_pixels.h"
 
 namespace phongfit {
 
@@ -48,11 +54,6 @@ PhongMaterial MaterialFit::material() const {
 
 namespace {
 
-// Reflectances below this are compared absolutely in the convergence test.
-constexpr double kReflectanceFloor = 0.01;
-// Pixels per block of the parallel sums. Fixed, with a fixed reduction tree, so that sums (and the
-// fit) are bit-identical whatever the thread count.
-constexpr std::size_t kPixelBlock = 256;
 // Solves per round with the instruments (or least squares' robust weights) moved to the last
 // solution (FitOptions::tolerance); a far start needs 3 or 4, the robust losses' weights a few
 // more.
@@ -70,254 +71,10 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-bool finite(const Color<float>& c) { return c.allFinite(); }
-
-// What a round's recordings hold, in bytes.
-std::size_t recordedBytes(const std::vector<PathSet>& sets) {
-    std::size_t bytes = 0;
-    for (const PathSet& p : sets)
-        bytes += p.terms.size() * sizeof(PathTerm) + p.vertices.size() * sizeof(PathVertex) +
-                 p.background.size() * sizeof(Color<float>) +
-                 p.pixelStart.size() * sizeof(std::uint32_t);
-    return bytes;
-}
-
 std::size_t peakResidentBytes() {
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
     return std::size_t(usage.ru_maxrss) * 1024;  // kilobytes on Linux
-}
-
-// A pixel that enters the fit: observed, finite, and seen through a fitted material, or next to
-// one that is (prepare).
-struct UsedPixel {
-    std::uint32_t view, pixel;
-    // Into Prepared::slots: the slots the vertices of the pixel and its neighbours use.
-    std::uint32_t slotBegin, slotCount;
-    Color3 observed;
-    double weight;
-    // Its own paths (in either set) have a vertex on a fitted material, or with a fitted exposure
-    // any light: its residual depends on the parameters.
-    bool seesMaterial;
-};
-
-struct Prepared {
-    std::vector<UsedPixel> pixels;
-    std::vector<int> widths, heights;  // per view
-    // Per view and pixel (y * width + x): its index in `pixels`, or -1 where it is not used.
-    std::vector<std::vector<std::int32_t>> index;
-    std::vector<std::uint32_t> slots;
-    std::vector<bool> slotSeen;
-    std::map<std::string, std::size_t> leftOut;
-    // The pixels that see a fitted material themselves, which come first in `pixels` (the rest only
-    // have neighbours that do, see prepare). Over those and channels:
-    std::size_t seeingMaterial = 0;
-    double meanObserved = 0;
-    double rmsObserved = 0;  // of weight * observation
-};
-
-void checkPathSet(const PathSet& paths, const Observation& obs, int view, int slots) {
-    const auto where = [&] { return fmt::format("path set of view {}", view); };
-    if (paths.width != obs.width || paths.height != obs.height)
-        throw Error(fmt::format("{} is {}x{} but its image is {}x{} (they must match)", where(),
-                                paths.width, paths.height, obs.width, obs.height));
-    if (paths.slots != slots)
-        throw Error(fmt::format("{} has {} material slots but {} materials are fitted", where(),
-                                paths.slots, slots));
-    const std::size_t pixels = std::size_t(obs.width) * std::size_t(obs.height);
-    if (paths.background.size() != pixels || paths.pixelStart.size() != pixels + 1 ||
-        paths.pixelStart.front() != 0 || paths.pixelStart.back() != paths.terms.size())
-        throw Error(
-            fmt::format("{}: background ({}) and pixelStart ({}) must hold {} and {} "
-                        "entries, pixelStart from 0 to the term count {}",
-                        where(), paths.background.size(), paths.pixelStart.size(), pixels,
-                        pixels + 1, paths.terms.size()));
-    for (std::size_t p = 0; p < pixels; ++p) {
-        if (paths.pixelStart[p] > paths.pixelStart[p + 1])
-            throw Error(fmt::format("{}: pixelStart decreases at pixel {}", where(), p));
-        for (std::uint32_t t = paths.pixelStart[p]; t < paths.pixelStart[p + 1]; ++t) {
-            const PathTerm& term = paths.terms[t];
-            if (term.pixel != p || term.vertexCount == 0 ||
-                std::size_t(term.firstVertex) + term.vertexCount > paths.vertices.size())
-                throw Error(
-                    fmt::format("{}: term {} (pixel {}, vertices {}+{}) is not pixel {}'s "
-                                "or has no valid vertex range (there are {} vertices)",
-                                where(), t, term.pixel, term.firstVertex, term.vertexCount, p,
-                                paths.vertices.size()));
-        }
-    }
-    for (std::size_t i = 0; i < paths.vertices.size(); ++i) {
-        const PathVertex& v = paths.vertices[i];
-        if (v.slot >= std::uint32_t(slots) || std::isnan(v.logCos) || v.logCos > 0)
-            throw Error(
-                fmt::format("{}: vertex {} has slot {} and log cos alpha {} (allowed: slot "
-                            "< {}, log cos alpha <= 0 or -inf)",
-                            where(), i, v.slot, v.logCos, slots));
-    }
-}
-
-void checkObservation(const Observation& obs, int view) {
-    const std::size_t pixels =
-        std::size_t(std::max(obs.width, 0)) * std::size_t(std::max(obs.height, 0));
-    if (obs.width <= 0 || obs.height <= 0 || obs.rgb.size() != 3 * pixels ||
-        (!obs.valid.empty() && obs.valid.size() != pixels) ||
-        (!obs.weight.empty() && obs.weight.size() != pixels))
-        throw Error(fmt::format(
-            "observation of view {}: {}x{} needs 3 values per pixel ({} given), "
-            "and a mask and weights with one per pixel or none ({} and {} "
-            "given)",
-            view, obs.width, obs.height, obs.rgb.size(), obs.valid.size(), obs.weight.size()));
-    for (std::size_t p = 0; p < obs.weight.size(); ++p)
-        if (!(obs.weight[p] >= 0) || !std::isfinite(obs.weight[p]))
-            throw Error(
-                fmt::format("observation of view {}: weight {} at pixel ({}, {}) is invalid "
-                            "(allowed: finite, >= 0)",
-                            view, obs.weight[p], p % obs.width, p / obs.width));
-}
-
-// The path sets the estimator replays: both recordings (instrumental variables) or their pool
-// (least squares), one list per view each.
-using SetLists = std::vector<const std::vector<PathSet>*>;
-
-// `radius`: a pixel enters when a fitted material is seen through a pixel at most this far from it
-// in either set (RoundSolver::smoothed). `exposureSlot` (-1 if none): the slot of the fitted
-// exposure, which every pixel with light in either set also sees (its background alone constrains
-// the exposure). Selecting by the sets must not select A's residuals by A's
-// own noise: a pixel where only B sees the material has an instrument from B and must enter
-// whatever A holds, or A's residuals would be kept only where A hit the material, which biases
-// them.
-Prepared prepare(const std::vector<Observation>& observations, const SetLists& sets, int slots,
-                 int radius, int exposureSlot) {
-    Prepared prep;
-    prep.slotSeen.assign(slots, false);
-    std::size_t masked = 0, nonFinite = 0, noMaterial = 0;
-    double sum = 0, sumSquares = 0;
-    std::vector<std::uint32_t> used;
-    for (std::size_t view = 0; view < observations.size(); ++view) {
-        const Observation& obs = observations[view];
-        const int width = obs.width, height = obs.height;
-        const std::size_t pixels = std::size_t(width) * std::size_t(height);
-        prep.widths.push_back(width);
-        prep.heights.push_back(height);
-        prep.index.emplace_back(pixels, -1);
-        // Per pixel, the slots its own vertices use (in either set), and whether it is usable.
-        std::vector<std::uint32_t> ownStart(pixels + 1, 0), own;
-        std::vector<std::uint8_t> usable(pixels, 0);
-        for (std::size_t p = 0; p < pixels; ++p) {
-            ownStart[p] = std::uint32_t(own.size());
-            const double weight = obs.weight.empty() ? 1.0 : obs.weight[p];
-            if ((!obs.valid.empty() && obs.valid[p] == 0) || weight == 0) {
-                ++masked;
-                continue;
-            }
-            bool ok = finite(Color<float>(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]));
-            bool lit = false;
-            used.clear();
-            for (const std::vector<PathSet>* set : sets) {
-                const PathSet& ps = (*set)[view];
-                ok = ok && finite(ps.background[p]);
-                lit = lit || (ps.background[p] != 0.0f).any() ||
-                      ps.pixelStart[p + 1] > ps.pixelStart[p];
-                for (std::uint32_t t = ps.pixelStart[p]; ok && t < ps.pixelStart[p + 1]; ++t) {
-                    const PathTerm& term = ps.terms[t];
-                    ok = finite(term.constant);
-                    for (std::uint32_t k = 0; k < term.vertexCount; ++k)
-                        used.push_back(ps.vertices[term.firstVertex + k].slot);
-                }
-            }
-            if (!ok) {
-                ++nonFinite;
-                continue;
-            }
-            usable[p] = 1;
-            if (exposureSlot >= 0 && lit) used.push_back(std::uint32_t(exposureSlot));
-            std::sort(used.begin(), used.end());
-            used.erase(std::unique(used.begin(), used.end()), used.end());
-            own.insert(own.end(), used.begin(), used.end());
-        }
-        ownStart[pixels] = std::uint32_t(own.size());
-        for (std::size_t p = 0; p < pixels; ++p) {
-            if (!usable[p]) continue;
-            const int x = int(p % std::size_t(width)), y = int(p / std::size_t(width));
-            used.clear();
-            for (int yy = std::max(y - radius, 0); yy <= std::min(y + radius, height - 1); ++yy)
-                for (int xx = std::max(x - radius, 0); xx <= std::min(x + radius, width - 1);
-                     ++xx) {
-                    const std::size_t q = std::size_t(yy) * std::size_t(width) + std::size_t(xx);
-                    used.insert(used.end(), own.begin() + ownStart[q],
-                                own.begin() + ownStart[q + 1]);
-                }
-            if (used.empty()) {
-                ++noMaterial;
-                continue;
-            }
-            std::sort(used.begin(), used.end());
-            used.erase(std::unique(used.begin(), used.end()), used.end());
-            const double weight = obs.weight.empty() ? 1.0 : obs.weight[p];
-            UsedPixel u;
-            u.view = std::uint32_t(view);
-            u.pixel = std::uint32_t(p);
-            u.slotBegin = std::uint32_t(prep.slots.size());
-            u.slotCount = std::uint32_t(used.size());
-            u.observed = Color3(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]);
-            u.weight = weight;
-            u.seesMaterial = ownStart[p + 1] > ownStart[p];
-            for (std::uint32_t s : used) prep.slotSeen[s] = true;
-            prep.index.back()[p] = std::int32_t(prep.pixels.size());
-            prep.slots.insert(prep.slots.end(), used.begin(), used.end());
-            prep.pixels.push_back(u);
-            if (!u.seesMaterial) continue;
-            ++prep.seeingMaterial;
-            sum += u.observed.sum();
-            sumSquares += weight * weight * u.observed.square().sum();
-        }
-    }
-    // Those that see a material first: the others' residuals do not depend on the parameters.
-    std::stable_partition(prep.pixels.begin(), prep.pixels.end(),
-                          [](const UsedPixel& u) { return u.seesMaterial; });
-    for (std::size_t i = 0; i < prep.pixels.size(); ++i)
-        prep.index[prep.pixels[i].view][prep.pixels[i].pixel] = std::int32_t(i);
-    if (prep.pixels.empty())
-        throw Error(
-            fmt::format("no pixel of any view can be fitted: {} masked, {} not finite, {} "
-                        "not seen through a fitted material",
-                        masked, nonFinite, noMaterial));
-    prep.leftOut = {
-        {"masked", masked}, {"non_finite", nonFinite}, {"no_fitted_material", noMaterial}};
-    const double values = 3.0 * double(prep.seeingMaterial);
-    prep.meanObserved = sum / values;
-    prep.rmsObserved = std::sqrt(sumSquares / values);
-    return prep;
-}
-
-// One set whose estimate is the mean of the two sets' estimates: both sets' terms at half weight.
-PathSet pool(const PathSet& a, const PathSet& b) {
-    PathSet out;
-    out.width = a.width;
-    out.height = a.height;
-    out.spp = a.spp + b.spp;
-    out.slots = a.slots;
-    const std::size_t pixels = a.background.size();
-    out.background.resize(pixels);
-    out.terms.reserve(a.terms.size() + b.terms.size());
-    out.vertices.reserve(a.vertices.size() + b.vertices.size());
-    out.pixelStart.reserve(pixels + 1);
-    out.pixelStart.push_back(0);
-    for (std::size_t p = 0; p < pixels; ++p) {
-        out.background[p] = 0.5f * (a.background[p] + b.background[p]);
-        for (const PathSet* set : {&a, &b}) {
-            for (std::uint32_t t = set->pixelStart[p]; t < set->pixelStart[p + 1]; ++t) {
-                PathTerm term = set->terms[t];
-                const auto first = set->vertices.begin() + term.firstVertex;
-                term.firstVertex = std::uint32_t(out.vertices.size());
-                term.constant *= 0.5f;
-                out.vertices.insert(out.vertices.end(), first, first + term.vertexCount);
-                out.terms.push_back(term);
-            }
-        }
-        out.pixelStart.push_back(std::uint32_t(out.terms.size()));
-    }
-    return out;
 }
 
 std::unique_ptr<ceres::LossFunction> makeLoss(const FitOptions& options, double meanObserved) {
@@ -431,27 +188,6 @@ struct Minimized {
     bool converged = true;  // Ceres stopped on a tolerance (nothing to solve counts)
 };
 
-// Whether every parameter moved from `before` to `after` (natural coordinates, per slot) by less
-// than FitOptions::tolerance allows.
-template <int P>
-bool withinTolerance(const std::vector<Eigen::Matrix<double, P, 1>>& before,
-                     const std::vector<Eigen::Matrix<double, P, 1>>& after,
-                     const std::vector<std::vector<double>>& naturalStd,
-                     const FitOptions& options) {
-    using L = BlockLayout<P>;
-    for (std::size_t s = 0; s < before.size(); ++s) {
-        for (int i = 0; i < P; ++i) {
-            const double change = std::abs(after[s][i] - before[s][i]);
-            const double scale =
-                i == L::kLogN ? 1.0 : std::max(std::abs(before[s][i]), kReflectanceFloor);
-            if (change > options.tolerance * scale &&
-                change > options.stdTolerance * naturalStd[s][i])
-                return false;
-        }
-    }
-    return true;
-}
-
 // Solves one round on fixed path sets. P is the block size (RGB or grey).
 template <int P>
 class RoundSolver {
@@ -486,8 +222,9 @@ public:
           first_(&first),
           second_(&second),
           sets_(instrumental_ ? SetLists{&first, &second} : SetLists{&leastSquaresSets()}),
-          prep_(prepare(observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0,
-                        exposureSlot_)),
+          prep_(selectUsedPixels(
+              observations, sets_, slots_, instrumental_ ? kInstrumentRadius : 0,
+              exposureSlot_ >= 0 ? ExposureBlock(exposureSlot_) : ExposureBlock())),
           loss_(makeLoss(options, prep_.meanObserved)),
           arena_(threads) {}
 
@@ -1036,22 +773,15 @@ private:
     // deterministically.
     template <typename Value, typename Body>
     Value sumOverPixels(std::size_t count, const Value& zero, const Body& body) {
-        return arena_.execute([&] {
-            return tbb::parallel_deterministic_reduce(
-                tbb::blocked_range<std::size_t>(0, count, kPixelBlock), zero,
-                [&](const tbb::blocked_range<std::size_t>& range, Value sum) {
-                    Scratch scratch;
-                    scratch.jets.resize(slots_);
-                    scratch.plain.resize(slots_);
-                    for (std::size_t i = range.begin(); i != range.end(); ++i)
-                        body(i, sum, scratch);
-                    return sum;
-                },
-                [](Value a, const Value& b) {
-                    a += b;
-                    return a;
-                });
-        });
+        return phongfit::sumOverPixels(
+            arena_, count, zero,
+            [this] {
+                Scratch scratch;
+                scratch.jets.resize(slots_);
+                scratch.plain.resize(slots_);
+                return scratch;
+            },
+            body);
     }
 
     // Sum over the pixels that see a material (the others' residuals do not depend on y) of
@@ -1386,7 +1116,7 @@ private:
         return out;
     }
 
-    // body(entry in Prepared::slots, pixel, used pixel) for the used pixels of `view` that list
+    // body(entry in UsedPixels::slots, pixel, used pixel) for the used pixels of `view` that list
     // `slot`.
     template <typename Body>
     void forEachEntry(std::size_t view, int slot, const Body& body) const {
@@ -1455,11 +1185,11 @@ private:
     const std::vector<PathSet>* second_;
     std::vector<PathSet> pooled_;  // leastSquaresSets(), once built
     SetLists sets_;
-    Prepared prep_;
+    UsedPixels prep_;
     std::unique_ptr<ceres::LossFunction> loss_;
     tbb::task_arena arena_;
     std::vector<double> x_;  // internal coordinates, P per slot
-    // Per set, at the last analysis: weighted Jacobians (per pixel slot, in Prepared::slots'
+    // Per set, at the last analysis: weighted Jacobians (per pixel slot, in UsedPixels::slots'
     // order), residuals and loss weights (per pixel).
     std::array<std::vector<Jacobian>, 2> jacobians_;
     std::array<std::vector<Eigen::Vector3d>, 2> residuals_;
