@@ -1,32 +1,12 @@
 // Fits Modified Phong parameters to observed images by replaying recorded path sets (DESIGN.md,
-// "Path replay"), round after round:
+// "Path replay"), round after round: record two independent path sets per view at the current
+// estimate, solve (all views jointly), hold what the images do not constrain, standard errors,
+// repeat until the parameters stop moving.
 //
-//   record two independent path sets per view at the current estimate -> solve (Ceres, all views
-//   jointly) -> find the parameters the images do not constrain, hold them at their start values,
-//   re-solve -> standard errors -> repeat until the parameters stop moving.
-//
-// Why two sets: the replayed estimate I_A(theta) of a set recorded with few samples per pixel is
-// noisy in its theta-dependent part, so least squares on it is an errors-in-variables regression:
-// E|y - I_A(theta)|^2 = |y - I(theta)|^2 + Var I_A(theta), and the variance, which grows with kd
-// and ks, pulls the minimiser towards 0 (measured on the Cornell demo at 4 spp: kd 0.5 -> 0.3; the
-// bias falls like 1 / spp). The instrumental-variables estimator solves instead
-//
-//   g(theta) = sum over pixels  W_B Z_B^T r_A(theta) + W_A Z_A^T r_B(theta) = 0,
-//
-// with r_A = weight (I_A(theta) - y) and instruments Z_B, W_B that are functions of set B alone:
-// B's Jacobian at a fixed point (the instrument point), averaged over the 5 x 5 pixels around (a
-// few samples make a single pixel's Jacobian as noisy as its value), and W_B the robust loss'
-// weight over the pixel's residual variance, estimated from the two sets at its neighbours. B's
-// noise is independent of A's, so E g(theta_true) = 0 whatever the spp: the estimate is
-// consistent in the number of pixels. Per round: round 0 first scans the exponents
-// (FitOptions::scanStart); then the round minimises sum r_A . r_B, whose expectation is the
-// noise-free least-squares objective (pooled least squares if that sum goes negative), and from
-// there solves g = 0, moving the instrument point to the solution until it stays put. The round
-// keeps the moment solution unless it does not settle or is clearly less precise than the cross-
-// product one (small images, where smoothing blurs the highlight); see RoundSolver.
-//
-// An unknown global exposure (FitOptions::fitExposure) is one more parameter, s, multiplying every
-// prediction; the solver carries it as an extra slot whose only free coordinate is log s.
+// Two sets, because least squares on one noisy set is biased towards 0; the default estimator
+// solves instrumental-variables moment equations with each set's instruments taken from the
+// other, which is consistent at any number of samples per pixel. docs/design/fitter.md gives the
+// reasoning and the measurements; the files it names hold the pieces.
 #pragma once
 
 #include <cstddef>
@@ -42,8 +22,8 @@
 
 namespace phongfit {
 
-// The range of a fitted exposure: 4.5 decades either side of 1 (the fitter lays s out as an
-// exponent, s * kExposureCentre, whose range is 1e-3 to 1e6).
+// The range of a fitted exposure: 4.5 decades either side of 1 (exposure_block.h lays s out as
+// an exponent, s * kExposureCentre, whose range is 1e-3 to 1e6).
 inline constexpr double kExposureCentre = 31.622776601683793;
 inline constexpr double kMinExposure = 1e-3 / kExposureCentre;
 inline constexpr double kMaxExposure = 1e6 / kExposureCentre;
@@ -51,7 +31,7 @@ inline constexpr double kMaxExposure = 1e6 / kExposureCentre;
 enum class LossKind { L2, Huber, Cauchy };
 
 enum class Estimator {
-    InstrumentalVariables,  // consistent at any spp (see above)
+    InstrumentalVariables,  // consistent at any spp (docs/design/fitter.md)
     LeastSquares,           // per-pixel least squares on the mean of the two sets: biased towards 0
 };
 
@@ -113,12 +93,10 @@ struct FitOptions {
     bool scanStart = true;
     // Converged when, between the estimate a round recorded at and the one it solved for, every
     // free kd, ks changed by less than tolerance * max(|value|, 0.01) and log n by less than
-    // tolerance, or the parameter moved less than stdTolerance standard errors: with fresh random
-    // numbers each round, two rounds' estimates differ by about 1.4 standard errors from noise
-    // alone, and no tolerance below that is ever met; 3 passes such a difference 97% of the time
-    // per parameter (2 passed 84%: with 7 parameters, most rounds after the estimate had settled
-    // went on for nothing). Round 0, which records at the start rather than at an estimate, and
-    // the instrument updates within a round stop at `tolerance` alone.
+    // tolerance, or the parameter moved less than stdTolerance standard errors (two rounds'
+    // estimates differ by about 1.4 standard errors from noise alone; 3 passes that 97% of the
+    // time). Round 0, which records at the start rather than at an estimate, and the instrument
+    // updates within a round stop at `tolerance` alone.
     double tolerance = 1e-3;
     double stdTolerance = 3;
     int maxIterations = 100;  // Ceres iterations per solve

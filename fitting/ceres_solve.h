@@ -1,0 +1,63 @@
+// The Ceres calls, in the steps of Ceres' bundle_adjuster example: the problem's parameter blocks
+// (buildProblem), the solver options (solverOptions) and the solve (solveProblem), for the
+// least-squares and the moment residual (one small dense block each, whose pixel sums run in
+// parallel).
+#pragma once
+
+#include <ceres/problem.h>
+#include <ceres/solver.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "fitter.h"
+#include "instruments.h"
+#include "objective.h"
+#include "parameter_state.h"
+
+namespace phongfit {
+
+// Ceres' relative function tolerance for the moment equations, whose cost is 0 at the root.
+inline constexpr double kMomentTolerance = 1e-10;
+
+struct Minimized {
+    int iterations = 0;
+    double seconds = 0;
+    bool converged = true;  // Ceres stopped on a tolerance (nothing to solve counts)
+};
+
+// Adds the blocks some used pixel sees (`seen`, per block), with their bounds and held
+// coordinates; `blockSlots` and `blocks` get each block's index and data. Returns the number of
+// free coordinates.
+template <int P>
+int buildProblem(ceres::Problem& problem, ParameterState<P>& params, const std::vector<bool>& seen,
+                 std::vector<std::uint32_t>& blockSlots, std::vector<double*>& blocks);
+
+// The flat coordinates of the blocks in `blockSlots` that are not held.
+template <int P>
+std::vector<int> freeIndices(const ParameterState<P>& params,
+                             const std::vector<std::uint32_t>& blockSlots);
+
+// `initialRadius`: Ceres' initial trust region radius, in its Jacobi-scaled coordinates;
+// `functionTolerance`: the relative cost change it stops at.
+ceres::Solver::Options solverOptions(const FitOptions& options, double initialRadius,
+                                     double functionTolerance);
+
+// Solves, stopping early when FitOptions::stopRequested says so (keeping the last accepted point).
+// Throws Error when Ceres has no usable solution.
+Minimized solveProblem(ceres::Problem& problem, const FitOptions& options, double initialRadius,
+                       double functionTolerance);
+
+// Least squares (Objective::leastSquaresSums with these weights, or cross products) from
+// `params`, which ends at the solution.
+template <int P>
+Minimized minimizeLeastSquares(Objective<P>& objective, ParameterState<P>& params,
+                               const std::vector<double>& weights, bool cross,
+                               const FitOptions& options);
+
+// The moment equations g = 0 with `instruments`, from `params`.
+template <int P>
+Minimized minimizeMoments(Objective<P>& objective, ParameterState<P>& params,
+                          const Instruments<P>& instruments, const FitOptions& options);
+
+}  // namespace phongfit

@@ -1,0 +1,95 @@
+// The two estimators of RoundSolver (docs/design/fitter.md explains why two sets, cross products
+// and moments).
+#include "convergence.h"
+#include "round_solver.h"
+#include "standard_errors.h"
+
+namespace phongfit {
+
+namespace {
+
+// Solves per round with the instruments (or least squares' robust weights) moved to the last
+// solution (FitOptions::tolerance); a far start needs 3 or 4, the robust losses' weights a few
+// more.
+constexpr int kMaxPasses = 8;
+// The moment solution is kept unless its precision is below this fraction of the cross-product
+// solution's: near-equal ones (exact data, where both are the least-squares solution) must not
+// flip from one to the other on rounding.
+constexpr double kCrossPreference = 0.5;
+
+}  // namespace
+
+// Least squares, or with a robust loss iteratively reweighted least squares: the first pass is
+// plain least squares (from a far start most of a highlight would look like outliers), each next
+// one weights the pixels by the loss at the last solution, until the solution stays put; the
+// fixed point solves the robust estimating equations.
+template <int P>
+Analysis RoundSolver<P>::solveLeastSquares(RoundOutcome& out) {
+    leastSquaresWeights_.clear();
+    std::vector<Eigen::Matrix<double, P, 1>> weightPoint;  // where the weights were taken
+    for (int pass = 1;; ++pass) {
+        account(out,
+                minimizeLeastSquares(objective_, params_, leastSquaresWeights_, false, options_));
+        Analysis analysis = analyse();
+        out.naturalStd = naturalStd(analysis.jacobian, analysis.scores);
+        if (!objective_.robust() || pass >= kMaxPasses || stopping() ||
+            (!weightPoint.empty() && withinTolerance<P>(weightPoint, params_.naturalBlocks(),
+                                                        noStd(params_.blockCount(), P), options_)))
+            return analysis;
+        leastSquaresWeights_ = at_.weights[0];
+        weightPoint = params_.naturalBlocks();
+    }
+}
+
+// First the cross-product least squares, sum over pixels of r_A . r_B: unbiased, and a
+// minimisation, which from the scan's basin finds the minimum where the moment equations can have
+// spurious roots. Where that sum goes negative (noise outweighs the model's error) pooled least
+// squares is the anchor instead. Then the moment equations from there, instruments moved to each
+// solution until it stays put. The moment solution is kept unless it does not settle or is
+// clearly less precise than the anchor (kCrossPreference).
+template <int P>
+Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
+    const std::vector<double> before = params_.internal();
+    account(out, minimizeLeastSquares(objective_, params_, leastSquaresWeights_, true, options_));
+    const std::vector<double> y = params_.naturalCoordinates();
+    double crossSum = 0;
+    objective_.leastSquaresSums(y.data(), leastSquaresWeights_, true, crossSum, nullptr, nullptr);
+    const bool cross = crossSum > 0;
+    if (!cross) {
+        params_.setInternal(before);
+        account(out,
+                minimizeLeastSquares(objective_, params_, leastSquaresWeights_, false, options_));
+    }
+    const std::vector<double> anchorX = params_.internal();
+    Analysis analysis = analyse();
+    const std::vector<std::vector<double>> anchorStd =
+        cross ? naturalStd(analysis.crossGram, analysis.crossScores)
+              : naturalStd(analysis.gram, analysis.leastSquaresScores);
+    instruments_.adopt(objective_, at_);
+    std::vector<Eigen::Matrix<double, P, 1>> instrumentPoint = params_.naturalBlocks();
+    for (int pass = 1;; ++pass) {
+        account(out, minimizeMoments(objective_, params_, instruments_, options_));
+        analysis = analyse();
+        out.naturalStd = naturalStd(analysis.jacobian, analysis.scores);
+        const bool settled = withinTolerance<P>(instrumentPoint, params_.naturalBlocks(),
+                                                noStd(params_.blockCount(), P), options_);
+        if (!settled && pass < kMaxPasses && !stopping()) {
+            instruments_.adopt(objective_, at_);
+            instrumentPoint = params_.naturalBlocks();
+            continue;
+        }
+        if (settled &&
+            precision(params_, out.naturalStd) >= kCrossPreference * precision(params_, anchorStd))
+            return analysis;
+        params_.setInternal(anchorX);
+        out.naturalStd = anchorStd;
+        return analyse();
+    }
+}
+
+template Analysis RoundSolver<kRgbBlock>::solveLeastSquares(RoundOutcome&);
+template Analysis RoundSolver<kGreyBlock>::solveLeastSquares(RoundOutcome&);
+template Analysis RoundSolver<kRgbBlock>::solveInstrumental(RoundOutcome&);
+template Analysis RoundSolver<kGreyBlock>::solveInstrumental(RoundOutcome&);
+
+}  // namespace phongfit

@@ -1,0 +1,46 @@
+#include "holding.h"
+
+#include "identifiability.h"
+#include "standard_errors.h"
+
+namespace phongfit {
+
+template <int P>
+bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
+                       ParameterState<P>& params) {
+    return params.hold(findUnconstrained(analysis.gram, 3.0 * double(pixels.seeingMaterial),
+                                         pixels.rmsObserved, params.heldFlags())) ||
+           holdUnseenExponents(analysis, params);
+}
+
+template <int P>
+bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params) {
+    using L = BlockLayout<P>;
+    std::vector<HeldParams> exponentsHeld = params.held();
+    for (int s = 0; s < params.materialCount(); ++s) exponentsHeld[s].n = true;
+    const std::vector<std::vector<double>> stdNatural =
+        naturalStd<P>(analysis.gram, analysis.leastSquaresScores, exponentsHeld);
+    std::vector<int> indices;
+    for (int s = 0; s < params.materialCount(); ++s) {
+        const HeldParams& held = params.held(s);
+        if (held.n) continue;
+        const Eigen::Matrix<double, P, 1> y = params.natural(s);
+        std::vector<double> ks, ksStd;
+        for (int g = 0; g < L::kGroups; ++g) {
+            if (held.ks[g]) continue;
+            ks.push_back(y[L::specular(g)]);
+            ksStd.push_back(stdNatural[s][L::specular(g)]);
+        }
+        if (!lobeDetected(ks, ksStd)) indices.push_back(s * P + L::kLogN);
+    }
+    return params.hold(indices);
+}
+
+template bool holdUnconstrained<kRgbBlock>(const Analysis&, const UsedPixels&,
+                                           ParameterState<kRgbBlock>&);
+template bool holdUnconstrained<kGreyBlock>(const Analysis&, const UsedPixels&,
+                                            ParameterState<kGreyBlock>&);
+template bool holdUnseenExponents<kRgbBlock>(const Analysis&, ParameterState<kRgbBlock>&);
+template bool holdUnseenExponents<kGreyBlock>(const Analysis&, ParameterState<kGreyBlock>&);
+
+}  // namespace phongfit

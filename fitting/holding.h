@@ -1,0 +1,25 @@
+// Holding what the images leave unconstrained at a round's solution (identifiability.h decides
+// from the information matrix; this applies it to the parameter state).
+#pragma once
+
+#include "analysis.h"
+#include "parameter_state.h"
+#include "used_pixels.h"
+
+namespace phongfit {
+
+// Holds the parameters findUnconstrained finds in `analysis`' Gram matrix, then, if none, the
+// exponents of materials that show no lobe (holdUnseenExponents). True if anything new is held:
+// the problem changed and is solved again.
+template <int P>
+bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
+                       ParameterState<P>& params);
+
+// n only shapes the lobe: where no free ks of a material is significantly above 0
+// (lobeDetected), its n is held. The standard errors are least squares' with every material's n
+// held: n has no effect at ks = 0, the hypothesis tested, and with n free they would count the
+// trade-off between ks and n that only a lobe has.
+template <int P>
+bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params);
+
+}  // namespace phongfit

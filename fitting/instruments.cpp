@@ -1,0 +1,247 @@
+#include "instruments.h"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <span>
+
+namespace phongfit {
+
+namespace {
+
+// The estimating equations g and (if sized) dg/dy, summed over pixels.
+struct MomentSums {
+    Eigen::VectorXd g;
+    Eigen::MatrixXd jacobian;
+
+    MomentSums& operator+=(const MomentSums& other) {
+        g += other.g;
+        jacobian += other.jacobian;
+        return *this;
+    }
+};
+
+// The instruments' Gram matrix (sum of W Z^T Z, averaged over the sets), and the moments of the
+// pixels that see no material.
+struct InstrumentSums {
+    Eigen::MatrixXd gram;
+    Eigen::VectorXd constantMoments;
+
+    InstrumentSums& operator+=(const InstrumentSums& other) {
+        gram += other.gram;
+        constantMoments += other.constantMoments;
+        return *this;
+    }
+};
+
+// body(entry in UsedPixels::slots, pixel, used pixel) for the used pixels of `view` that list
+// `slot`.
+template <typename Body>
+void forEachEntry(const UsedPixels& prep, std::size_t view, int slot, const Body& body) {
+    for (const UsedPixel& u : prep.pixels) {
+        if (u.view != view) continue;
+        for (std::uint32_t a = 0; a < u.slotCount; ++a)
+            if (prep.slots[u.slotBegin + a] == std::uint32_t(slot))
+                body(u.slotBegin + a, std::size_t(u.pixel), u);
+    }
+}
+
+}  // namespace
+
+template <int P>
+void Instruments<P>::adopt(Objective<P>& objective, const Linearization<P>& at) {
+    const UsedPixels& prep = objective.pixels();
+    const int sets = objective.setCount();
+    for (int k = 0; k < sets; ++k) instruments_[k] = smoothed(objective, at.jacobians[k]);
+    weights_ = at.weights;
+    const std::vector<double> precision = residualPrecisions(prep, at.residuals);
+    for (int k = 0; k < sets; ++k)
+        for (std::size_t i = 0; i < precision.size(); ++i) weights_[k][i] *= precision[i];
+    const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
+    const InstrumentSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::VectorXd::Zero(size)};
+    InstrumentSums sums = objective.sumPixels(
+        prep.pixels.size(), zero,
+        [&](std::size_t i, InstrumentSums& sum, typename Objective<P>::Scratch& scratch) {
+            const UsedPixel& u = prep.pixels[i];
+            const std::span<const std::uint32_t> slots = prep.slotsOf(u);
+            for (int k = 0; k < sets; ++k)
+                for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                        sum.gram.template block<P, P>(Eigen::Index(slots[a]) * P,
+                                                      Eigen::Index(slots[b]) * P) +=
+                            weights_[k][i] / sets * instruments_[k][u.slotBegin + a].transpose() *
+                            instruments_[k][u.slotBegin + b];
+            if (u.seesMaterial) return;
+            pixelMoment<P>(at, this, sets, i, u, scratch.moment, nullptr);
+            for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                sum.constantMoments.template segment<P>(Eigen::Index(slots[a]) * P) +=
+                    scratch.moment.template segment<P>(Eigen::Index(a) * P);
+        });
+    gram_ = std::move(sums.gram);
+    constantMoments_ = std::move(sums.constantMoments);
+}
+
+template <int P>
+void Instruments<P>::momentSums(Objective<P>& objective, const double* y, Eigen::VectorXd& g,
+                                Eigen::MatrixXd* jacobian) const {
+    const UsedPixels& prep = objective.pixels();
+    const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
+    const bool withJacobian = jacobian != nullptr;
+    const MomentSums zero{Eigen::VectorXd::Zero(size),
+                          withJacobian ? Eigen::MatrixXd::Zero(size, size) : Eigen::MatrixXd()};
+    MomentSums sums = objective.sumPixels(
+        prep.seeingMaterial, zero,
+        [&](std::size_t i, MomentSums& sum, typename Objective<P>::Scratch& scratch) {
+            const UsedPixel& u = prep.pixels[i];
+            const std::span<const std::uint32_t> slots = prep.slotsOf(u);
+            for (int k = 0; k < 2; ++k) {
+                const int other = 1 - k;
+                const Eigen::Vector3d r = objective.residual(k, u, y, scratch, withJacobian);
+                const double w = weights_[other][i];
+                for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                    const Jacobian z = w * instruments_[other][u.slotBegin + a];
+                    const Eigen::Index row = Eigen::Index(slots[a]) * P;
+                    addPackedGradient<P>(sum.g.template segment<P>(row), 1.0, z, r);
+                    if (!withJacobian) continue;
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
+                        addPackedGram<P>(
+                            sum.jacobian.template block<P, P>(row, Eigen::Index(slots[b]) * P), 1.0,
+                            z, scratch.jacobians[k][b]);
+                }
+            }
+        });
+    g = sums.g + constantMoments_;
+    if (withJacobian) *jacobian = std::move(sums.jacobian);
+}
+
+template <int P>
+Eigen::MatrixXd Instruments<P>::whitening(const std::vector<int>& free) const {
+    Eigen::MatrixXd gram = gram_(free, free);
+    const Eigen::Index n = gram.rows();
+    // An instrument that is 0 at every pixel makes its equation 0 everywhere; any scale does.
+    for (Eigen::Index i = 0; i < n; ++i)
+        if (!(gram(i, i) > 0)) gram(i, i) = 1;
+    const Eigen::VectorXd scale = gram.diagonal().cwiseSqrt().cwiseInverse();
+    Eigen::MatrixXd correlation = scale.asDiagonal() * gram * scale.asDiagonal();
+    // Collinear instruments: found unconstrained and held after this solve.
+    correlation.diagonal().array() += 1e-12;
+    const Eigen::LLT<Eigen::MatrixXd> llt(correlation);
+    return llt.matrixL().solve(Eigen::MatrixXd(scale.asDiagonal()));
+}
+
+// Jacobians averaged over the (2 kInstrumentRadius + 1)^2 pixels around each pixel (pixels not
+// used count as 0): a few samples make a pixel's Jacobian as noisy as its value, and instruments
+// that noisy cost the estimate precision.
+template <int P>
+std::vector<typename Instruments<P>::Jacobian> Instruments<P>::smoothed(
+    Objective<P>& objective, const std::vector<Jacobian>& jacobians) const {
+    const UsedPixels& prep = objective.pixels();
+    std::vector<Jacobian> out(jacobians.size(), Jacobian::Zero());
+    for (std::size_t view = 0; view < prep.widths.size(); ++view) {
+        const int width = prep.widths[view], height = prep.heights[view];
+        const std::size_t pixels = std::size_t(width) * std::size_t(height);
+        std::vector<Jacobian> image, rows(pixels);
+        for (int s = 0; s < objective.blocks(); ++s) {
+            if (!prep.slotSeen[s]) continue;
+            image.assign(pixels, Jacobian::Zero());
+            forEachEntry(prep, view, s, [&](std::size_t entry, std::size_t p, const UsedPixel& u) {
+                if (u.seesMaterial) image[p] = jacobians[entry];
+            });
+            // A separable box filter: rows, then columns.
+            objective.arena().execute([&] {
+                tbb::parallel_for(0, height, [&](int y) {
+                    for (int x = 0; x < width; ++x) {
+                        Jacobian sum = Jacobian::Zero();
+                        for (int xx = std::max(x - kInstrumentRadius, 0);
+                             xx <= std::min(x + kInstrumentRadius, width - 1); ++xx)
+                            sum += image[std::size_t(y) * width + xx];
+                        rows[std::size_t(y) * width + x] = sum;
+                    }
+                });
+                tbb::parallel_for(0, width, [&](int x) {
+                    for (int y = 0; y < height; ++y) {
+                        Jacobian sum = Jacobian::Zero();
+                        for (int yy = std::max(y - kInstrumentRadius, 0);
+                             yy <= std::min(y + kInstrumentRadius, height - 1); ++yy)
+                            sum += rows[std::size_t(yy) * width + x];
+                        image[std::size_t(y) * width + x] = sum;
+                    }
+                });
+            });
+            forEachEntry(prep, view, s, [&](std::size_t entry, std::size_t p, const UsedPixel&) {
+                const int x = int(p % std::size_t(width)), y = int(p / std::size_t(width));
+                const int count = (std::min(x + kInstrumentRadius, width - 1) -
+                                   std::max(x - kInstrumentRadius, 0) + 1) *
+                                  (std::min(y + kInstrumentRadius, height - 1) -
+                                   std::max(y - kInstrumentRadius, 0) + 1);
+                out[entry] = image[p] / count;
+            });
+        }
+    }
+    return out;
+}
+
+std::vector<double> residualPrecisions(
+    const UsedPixels& prep, const std::array<std::vector<Eigen::Vector3d>, 2>& residuals) {
+    const std::size_t count = prep.pixels.size();
+    std::vector<double> d(count), precision(count);
+    double mean = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+        d[i] = 0.5 * (residuals[0][i] - residuals[1][i]).squaredNorm();
+        mean += d[i] / double(count);
+    }
+    const double floor = std::max(1e-2 * mean, 1e-12 * prep.rmsObserved * prep.rmsObserved);
+    for (std::size_t i = 0; i < count; ++i) {
+        const UsedPixel& u = prep.pixels[i];
+        const int width = prep.widths[u.view], height = prep.heights[u.view];
+        const int x = int(u.pixel) % width, y = int(u.pixel) / width;
+        double sum = 0;
+        int n = 0;
+        for (int yy = std::max(y - kInstrumentRadius, 0);
+             yy <= std::min(y + kInstrumentRadius, height - 1); ++yy)
+            for (int xx = std::max(x - kInstrumentRadius, 0);
+                 xx <= std::min(x + kInstrumentRadius, width - 1); ++xx) {
+                const std::int32_t q =
+                    prep.index[u.view][std::size_t(yy) * std::size_t(width) + xx];
+                if (q < 0 || std::size_t(q) == i) continue;
+                sum += d[std::size_t(q)];
+                ++n;
+            }
+        precision[i] = 1 / ((n > 0 ? sum / n : mean) + floor);
+    }
+    return precision;
+}
+
+template <int P>
+void pixelMoment(const Linearization<P>& at, const Instruments<P>* instruments, int sets,
+                 std::size_t i, const UsedPixel& u, Eigen::VectorXd& m, Eigen::MatrixXd* jacobian) {
+    const bool instrumental = instruments != nullptr;
+    const Eigen::Index n = Eigen::Index(u.slotCount) * P;
+    m.setZero(n);
+    if (jacobian != nullptr) jacobian->setZero(n, n);
+    for (int k = 0; k < sets; ++k) {
+        const int other = instrumental ? 1 - k : k;
+        const std::vector<Eigen::Matrix<double, 3, P>>& z =
+            instrumental ? instruments->instruments(other) : at.jacobians[k];
+        const double w = instrumental ? instruments->weights(other)[i] : at.weights[k][i];
+        for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+            const Eigen::Matrix<double, 3, P>& za = z[u.slotBegin + a];
+            addPackedGradient<P>(m.segment<P>(Eigen::Index(a) * P), w, za, at.residuals[k][i]);
+            for (std::uint32_t b = 0; jacobian != nullptr && b < u.slotCount; ++b)
+                addPackedGram<P>(jacobian->block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P), w,
+                                 za, at.jacobians[k][u.slotBegin + b]);
+        }
+    }
+}
+
+template class Instruments<kRgbBlock>;
+template class Instruments<kGreyBlock>;
+template void pixelMoment<kRgbBlock>(const Linearization<kRgbBlock>&, const Instruments<kRgbBlock>*,
+                                     int, std::size_t, const UsedPixel&, Eigen::VectorXd&,
+                                     Eigen::MatrixXd*);
+template void pixelMoment<kGreyBlock>(const Linearization<kGreyBlock>&,
+                                      const Instruments<kGreyBlock>*, int, std::size_t,
+                                      const UsedPixel&, Eigen::VectorXd&, Eigen::MatrixXd*);
+
+}  // namespace phongfit

@@ -1,0 +1,79 @@
+// The instrumental-variables moments (docs/design/fitter.md):
+//
+//     g(y) = sum over pixels and sets k of W_other Z_other^T r_k(y)
+//
+// with the instruments Z of each set its Jacobians at the instrument point, smoothed over the
+// pixels around, and W its robust loss weights over the pixel's residual variance. Any function of
+// the other set is a valid instrument; these make the estimate efficient and robust.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <vector>
+
+#include "material_params.h"
+#include "objective.h"
+
+namespace phongfit {
+
+// Instruments are averaged over this many pixels on each side, and pixels this near one that sees
+// a material enter the moments.
+inline constexpr int kInstrumentRadius = 2;
+
+// Each set's weighted Jacobians (per pixel slot, in UsedPixels::slots' order), residuals and
+// robust loss weights (per pixel) at one point: the last analysis (analysis.h).
+template <int P>
+struct Linearization {
+    std::array<std::vector<Eigen::Matrix<double, 3, P>>, 2> jacobians;
+    std::array<std::vector<Eigen::Vector3d>, 2> residuals;
+    std::array<std::vector<double>, 2> weights;
+};
+
+template <int P>
+class Instruments {
+public:
+    using Jacobian = Eigen::Matrix<double, 3, P>;
+
+    bool empty() const { return instruments_[0].empty(); }
+    const std::vector<Jacobian>& instruments(int k) const { return instruments_[k]; }
+    const std::vector<double>& weights(int k) const { return weights_[k]; }
+
+    // Makes the Jacobians and loss weights of `at` the instruments; also their Gram matrix, for
+    // the whitening, and the moments of the pixels that see no material, which do not depend on
+    // the parameters.
+    void adopt(Objective<P>& objective, const Linearization<P>& at);
+
+    // g at flat natural coordinates y and, if `jacobian` is not null, dg/dy.
+    void momentSums(Objective<P>& objective, const double* y, Eigen::VectorXd& g,
+                    Eigen::MatrixXd* jacobian) const;
+
+    // L^-1 with L L^T the instruments' Gram matrix over the flat coordinates `free`.
+    Eigen::MatrixXd whitening(const std::vector<int>& free) const;
+
+private:
+    std::vector<Jacobian> smoothed(Objective<P>& objective,
+                                   const std::vector<Jacobian>& jacobians) const;
+
+    std::array<std::vector<Jacobian>, 2> instruments_;  // per set, per pixel slot
+    std::array<std::vector<double>, 2> weights_;        // per set and pixel
+    Eigen::MatrixXd gram_;
+    Eigen::VectorXd constantMoments_;
+};
+
+// 1 / the variance of each used pixel's residual, estimated from the two sets' residuals at its
+// neighbours (not the pixel itself, so the weight is independent of the residual it weights).
+std::vector<double> residualPrecisions(
+    const UsedPixels& pixels, const std::array<std::vector<Eigen::Vector3d>, 2>& residuals);
+
+// Pixel i's term m of the estimating equations and, if `jacobian` is not null, its Jacobian, over
+// the pixel's slots, from `at`: W_other Z_other^T r_k summed over the sets with `instruments`,
+// least squares' rho' J^T r (its instruments are its own Jacobians) when that is null.
+template <int P>
+void pixelMoment(const Linearization<P>& at, const Instruments<P>* instruments, int sets,
+                 std::size_t i, const UsedPixel& u, Eigen::VectorXd& m, Eigen::MatrixXd* jacobian);
+
+extern template class Instruments<kRgbBlock>;
+extern template class Instruments<kGreyBlock>;
+
+}  // namespace phongfit

@@ -1,0 +1,63 @@
+#include "round_outcome.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+namespace phongfit {
+
+template <int P>
+MaterialFit materialFit(const ParameterState<P>& params, int m,
+                        const std::vector<double>& stdNatural) {
+    using L = BlockLayout<P>;
+    const HeldParams& held = params.held(m);
+    const Eigen::Matrix<double, P, 1> y = params.natural(m);
+    MaterialFit fit;
+    const PhongMaterial p = naturalToPhong<P>(y.data());
+    fit.kd = p.kd;
+    fit.ks = p.ks;
+    fit.n = p.n;
+    for (int c = 0; c < 3; ++c) {
+        fit.kdStd[c] = stdNatural[L::diffuse(L::group(c))];
+        fit.ksStd[c] = stdNatural[L::specular(L::group(c))];
+    }
+    // exp(log n) need not round-trip: a held n is reported exactly as it started.
+    if (held.n) fit.n = std::clamp(params.start(m).n, kMinExponent, kMaxExponent);
+    fit.nStd = fit.n * stdNatural[L::kLogN];
+    static constexpr const char* kChannel[3] = {"r", "g", "b"};
+    for (const char* name : {"kd", "ks"}) {
+        const bool diffuse = name[1] == 'd';
+        const auto& flags = diffuse ? held.kd : held.ks;
+        const int count = int(std::count(flags.begin(), flags.begin() + L::kGroups, true));
+        if (count == L::kGroups) {
+            fit.unconstrained.push_back(name);
+        } else {
+            for (int g = 0; g < L::kGroups; ++g)
+                if (flags[g]) fit.unconstrained.push_back(fmt::format("{}.{}", name, kChannel[g]));
+        }
+    }
+    if (held.n) fit.unconstrained.push_back("n");
+    return fit;
+}
+
+template <int P>
+ExposureFit exposureFit(const ParameterState<P>& params, const std::vector<double>& stdNatural) {
+    using L = BlockLayout<P>;
+    const int e = params.exposure().slot();
+    ExposureFit fit;
+    fit.value = ExposureBlock::fromCoordinate(params.natural(e)[L::kLogN]);
+    fit.std = fit.value * stdNatural[L::kLogN];
+    fit.unconstrained = params.held(e).n;
+    return fit;
+}
+
+template MaterialFit materialFit<kRgbBlock>(const ParameterState<kRgbBlock>&, int,
+                                            const std::vector<double>&);
+template MaterialFit materialFit<kGreyBlock>(const ParameterState<kGreyBlock>&, int,
+                                             const std::vector<double>&);
+template ExposureFit exposureFit<kRgbBlock>(const ParameterState<kRgbBlock>&,
+                                            const std::vector<double>&);
+template ExposureFit exposureFit<kGreyBlock>(const ParameterState<kGreyBlock>&,
+                                             const std::vector<double>&);
+
+}  // namespace phongfit

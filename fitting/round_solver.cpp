@@ -1,0 +1,72 @@
+#include "round_solver.h"
+
+#include <cmath>
+
+#include "holding.h"
+#include "standard_errors.h"
+#include "start_scan.h"
+
+namespace phongfit {
+
+template <int P>
+RoundSolver<P>::RoundSolver(const std::vector<Observation>& observations,
+                            const std::vector<PathSet>& first, const std::vector<PathSet>& second,
+                            ParameterState<P>& params, const FitOptions& options, int threads,
+                            bool firstRound)
+    : params_(params),
+      options_(options),
+      instrumental_(options.estimator == Estimator::InstrumentalVariables),
+      firstRound_(firstRound),
+      objective_(observations, first, second, instrumental_, instrumental_ ? kInstrumentRadius : 0,
+                 params.blockCount(), params.exposure(), options, threads) {}
+
+template <int P>
+RoundOutcome RoundSolver<P>::solve(const Estimate& theta) {
+    const UsedPixels& prep = objective_.pixels();
+    RoundOutcome out;
+    // An n held at a start far off (100 for a true 10) leaves ks small there, but the next
+    // round, recorded nearer the truth, can show the lobe.
+    if (!firstRound_) params_.releaseExponents();
+    for (int b = 0; b < params_.blockCount(); ++b)
+        if (!prep.slotSeen[b]) params_.holdAll(b);
+    params_.startAt(theta);
+    const ExposureBlock& exposure = params_.exposure();
+    if (firstRound_ && exposure.fitted() && !params_.held(exposure.slot()).n)
+        matchExposure(objective_, params_);
+    if (firstRound_ && options_.scanStart) scanExponents(objective_, params_);
+    Analysis analysis;
+    do {
+        analysis = instrumental_ ? solveInstrumental(out) : solveLeastSquares(out);
+        // What the images leave unconstrained is decided at the solution, not on the way.
+    } while (holdUnconstrained(analysis, prep, params_));
+    for (int m = 0; m < params_.materialCount(); ++m)
+        out.materials.push_back(materialFit(params_, m, out.naturalStd[m]));
+    if (exposure.fitted()) out.exposure = exposureFit(params_, out.naturalStd[exposure.slot()]);
+    out.rmse = std::sqrt(analysis.squares / (3.0 * double(prep.seeingMaterial)));
+    out.pixelsUsed = prep.pixels.size();
+    out.leftOut = prep.leftOut;
+    return out;
+}
+
+template <int P>
+Analysis RoundSolver<P>::analyse() {
+    return phongfit::analyse(objective_, params_, instrumental_ ? &instruments_ : nullptr, at_);
+}
+
+template <int P>
+std::vector<std::vector<double>> RoundSolver<P>::naturalStd(const Eigen::MatrixXd& jacobian,
+                                                            const Eigen::MatrixXd& scores) const {
+    return phongfit::naturalStd<P>(jacobian, scores, params_.held());
+}
+
+template <int P>
+void RoundSolver<P>::account(RoundOutcome& out, const Minimized& m) const {
+    out.iterations += m.iterations;
+    out.minimizerSeconds += m.seconds;
+    out.solverConverged = m.converged;
+}
+
+template class RoundSolver<kRgbBlock>;
+template class RoundSolver<kGreyBlock>;
+
+}  // namespace phongfit

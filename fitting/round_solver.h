@@ -1,0 +1,56 @@
+// Solves one round on fixed path sets: from the round's start (with, in the first round, the
+// exposure matched and the exponents scanned) the estimator's solves, then what the images leave
+// unconstrained is held and the problem solved again, until nothing more is held.
+#pragma once
+
+#include <vector>
+
+#include "analysis.h"
+#include "ceres_solve.h"
+#include "fitter.h"
+#include "instruments.h"
+#include "objective.h"
+#include "parameter_state.h"
+#include "round_outcome.h"
+
+namespace phongfit {
+
+template <int P>
+class RoundSolver {
+public:
+    // `params` persists across rounds: the held parameters and the exposure's start. The path
+    // sets must outlive the solver. `firstRound`: match the exposure and scan the exponents
+    // (FitOptions::scanStart).
+    RoundSolver(const std::vector<Observation>& observations, const std::vector<PathSet>& first,
+                const std::vector<PathSet>& second, ParameterState<P>& params,
+                const FitOptions& options, int threads, bool firstRound);
+
+    // From `theta`; held parameters stay at their start.
+    RoundOutcome solve(const Estimate& theta);
+
+private:
+    // The estimators (estimators.cpp): least squares, reweighted for a robust loss, and the
+    // cross-product anchor followed by the instrumental-variables moments.
+    Analysis solveLeastSquares(RoundOutcome& out);
+    Analysis solveInstrumental(RoundOutcome& out);
+
+    Analysis analyse();
+    std::vector<std::vector<double>> naturalStd(const Eigen::MatrixXd& jacobian,
+                                                const Eigen::MatrixXd& scores) const;
+    void account(RoundOutcome& out, const Minimized& m) const;
+    bool stopping() const { return options_.stopRequested && options_.stopRequested(); }
+
+    ParameterState<P>& params_;
+    const FitOptions& options_;
+    bool instrumental_;
+    bool firstRound_;
+    Objective<P> objective_;
+    Linearization<P> at_;  // at the last analysis
+    Instruments<P> instruments_;
+    std::vector<double> leastSquaresWeights_;  // per pixel; empty: all 1
+};
+
+extern template class RoundSolver<kRgbBlock>;
+extern template class RoundSolver<kGreyBlock>;
+
+}  // namespace phongfit

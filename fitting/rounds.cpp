@@ -1,0 +1,110 @@
+#include "rounds.h"
+
+#include <fmt/format.h>
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <thread>
+
+#include "convergence.h"
+#include "error.h"
+#include "fit_input.h"
+#include "parameter_state.h"
+#include "round_paths.h"
+#include "round_solver.h"
+
+namespace phongfit {
+
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::size_t peakResidentBytes() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return std::size_t(usage.ru_maxrss) * 1024;  // kilobytes on Linux
+}
+
+}  // namespace
+
+template <int P>
+FitResult runRounds(const std::vector<Observation>& observations, const RecordAll& recordAll,
+                    const std::vector<PhongMaterial>& start, const FitOptions& options,
+                    int maxRounds) {
+    const auto begin = std::chrono::steady_clock::now();
+    const int threads = options.threads > 0 ? options.threads
+                                            : std::max(1, int(std::thread::hardware_concurrency()));
+    FitResult result;
+    ParameterState<P> params(start, options.fitExposure);
+    Estimate theta{start, 1.0};
+    for (int round = 0; round < maxRounds; ++round) {
+        const auto roundBegin = std::chrono::steady_clock::now();
+        const RoundSets sets = recordAll(theta.materials, round);
+        const double recordSeconds = secondsSince(roundBegin);
+        for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
+            if (paths->size() != observations.size())
+                throw Error(fmt::format("the recorder returned {} path sets for {} views",
+                                        paths->size(), observations.size()));
+            for (std::size_t v = 0; v < observations.size(); ++v)
+                checkPathSet((*paths)[v], observations[v], int(v), int(start.size()));
+        }
+        // Later rounds start where the last one ended, near enough for the instruments.
+        RoundSolver<P> solver(observations, *sets.first, *sets.second, params, options, threads,
+                              round == 0);
+        const Estimate recorded = theta;
+        RoundOutcome out = solver.solve(theta);
+
+        FitRound r;
+        r.round = round;
+        r.recordSeconds = recordSeconds;
+        r.timeSeconds = secondsSince(roundBegin);
+        r.rmse = out.rmse;
+        r.iterations = out.iterations;
+        r.secondsPerIteration = out.minimizerSeconds / std::max(out.iterations, 1);
+        r.materials = out.materials;
+        r.exposure = out.exposure;
+        r.recordedBytes = recordedBytes(*sets.first) +
+                          (sets.first == sets.second ? 0 : recordedBytes(*sets.second));
+        r.peakMemoryBytes = peakResidentBytes();
+        result.rounds.push_back(r);
+        if (options.onRound) options.onRound(r);
+        for (std::size_t s = 0; s < start.size(); ++s)
+            theta.materials[s] = out.materials[s].material();
+        if (options.fitExposure) theta.exposure = out.exposure.value;
+        // Round 0 recorded at the start, not at an estimate: its move is no difference between
+        // two estimates, and its standard errors, of a replay far from where its paths were
+        // recorded, are the least telling. Only the tolerance applies there.
+        std::vector<std::vector<double>> noise = out.naturalStd;
+        if (round == 0)
+            for (std::vector<double>& block : noise) std::fill(block.begin(), block.end(), 0.0);
+        // Exact sets (the same list as both recordings) give the same problem every round: the
+        // solver's own convergence is the answer.
+        result.converged = withinTolerance<P>(params.naturalBlocks(recorded),
+                                              params.naturalBlocks(theta), noise, options) ||
+                           (sets.first == sets.second && out.solverConverged);
+        result.materials = out.materials;
+        if (options.fitExposure) result.exposure = out.exposure;
+        result.rmse = out.rmse;
+        result.pixelsUsed = out.pixelsUsed;
+        result.pixelsLeftOut = out.leftOut;
+        if (options.stopRequested && options.stopRequested()) {
+            // The round's solves may have been cut short: not a converged estimate.
+            result.interrupted = true;
+            result.converged = false;
+            break;
+        }
+        if (result.converged) break;
+    }
+    result.timeSeconds = secondsSince(begin);
+    return result;
+}
+
+template FitResult runRounds<kRgbBlock>(const std::vector<Observation>&, const RecordAll&,
+                                        const std::vector<PhongMaterial>&, const FitOptions&, int);
+template FitResult runRounds<kGreyBlock>(const std::vector<Observation>&, const RecordAll&,
+                                         const std::vector<PhongMaterial>&, const FitOptions&, int);
+
+}  // namespace phongfit

@@ -1,0 +1,31 @@
+// The rounds loop: record two path sets per view at the current estimate, solve the round,
+// repeat until the estimate stops moving (fitter.h).
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "fitter.h"
+#include "observation.h"
+#include "path_set.h"
+
+namespace phongfit {
+
+// The two path-set lists of a round, one set per view each; the same list twice for exact sets.
+struct RoundSets {
+    const std::vector<PathSet>* first;
+    const std::vector<PathSet>* second;
+};
+
+// Records (or hands out) round `round`'s sets at the materials' estimate.
+using RecordAll = std::function<RoundSets(const std::vector<PhongMaterial>&, int round)>;
+
+// At most `maxRounds` rounds from `start` on inputs fitMaterials has checked; P is the block size
+// (kRgbBlock, or kGreyBlock with FitOptions::grey). Throws Error when the recorder's sets do not
+// match the observations.
+template <int P>
+FitResult runRounds(const std::vector<Observation>& observations, const RecordAll& recordAll,
+                    const std::vector<PhongMaterial>& start, const FitOptions& options,
+                    int maxRounds);
+
+}  // namespace phongfit

@@ -1,0 +1,96 @@
+#include "standard_errors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <span>
+
+#include "convergence.h"
+#include "uncertainty.h"
+
+namespace phongfit {
+
+template <int P>
+Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
+                       const Instruments<P>* instruments, const Eigen::MatrixXd& jacobian,
+                       const std::vector<bool>& held) {
+    const UsedPixels& prep = objective.pixels();
+    const int sets = objective.setCount();
+    const Eigen::MatrixXd inverse = freeInverse(jacobian, held);
+    const Eigen::Index size = jacobian.rows();
+    return objective.sumPixels(
+        prep.pixels.size(), Eigen::MatrixXd(Eigen::MatrixXd::Zero(size, size)),
+        [&](std::size_t i, Eigen::MatrixXd& sum, typename Objective<P>::Scratch& scratch) {
+            const UsedPixel& u = prep.pixels[i];
+            const std::span<const std::uint32_t> slots = prep.slotsOf(u);
+            std::vector<Eigen::Index>& indices = scratch.indices;
+            indices.clear();
+            for (std::uint32_t s : slots)
+                for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
+            // A pixel that sees no material does not pull on the estimate.
+            pixelMoment<P>(at, instruments, sets, i, u, scratch.moment,
+                           u.seesMaterial ? &scratch.momentJacobian : nullptr);
+            const Eigen::VectorXd m =
+                u.seesMaterial ? leaveOneOutScore(scratch.momentJacobian, inverse(indices, indices),
+                                                  scratch.moment)
+                               : scratch.moment;
+            sum(indices, indices) += m * m.transpose();
+        });
+}
+
+template <int P>
+std::vector<std::vector<double>> naturalStd(const Eigen::MatrixXd& jacobian,
+                                            const Eigen::MatrixXd& scores,
+                                            const std::vector<HeldParams>& held) {
+    const std::vector<double> variance =
+        sandwichVariances(jacobian, scores, ParameterState<P>::heldFlags(held));
+    const int blocks = int(held.size());
+    std::vector<std::vector<double>> result(blocks, std::vector<double>(P, 0.0));
+    for (int s = 0; s < blocks; ++s)
+        for (int i = 0; i < P; ++i) {
+            const double v = variance[std::size_t(s) * P + i];
+            result[s][i] = ParameterState<P>::isHeld(held[s], i) || !(v > 0) ? 0 : std::sqrt(v);
+        }
+    return result;
+}
+
+std::vector<std::vector<double>> noStd(int blocks, int p) {
+    return std::vector<std::vector<double>>(blocks, std::vector<double>(p, 0.0));
+}
+
+template <int P>
+double precision(const ParameterState<P>& params,
+                 const std::vector<std::vector<double>>& stdNatural) {
+    using L = BlockLayout<P>;
+    double sum = 0;
+    for (int s = 0; s < params.blockCount(); ++s) {
+        const Eigen::Matrix<double, P, 1> y = params.natural(s);
+        for (int i = 0; i < P; ++i) {
+            if (params.isHeld(s, i)) continue;
+            const double sd = stdNatural[std::size_t(s)][std::size_t(i)];
+            if (!(sd > 0) || !std::isfinite(sd)) return 0;
+            const double scale = i == L::kLogN ? 1.0 : std::max(std::abs(y[i]), kReflectanceFloor);
+            sum += sd * sd / (scale * scale);
+        }
+    }
+    return sum > 0 ? 1 / sum : 0;
+}
+
+template Eigen::MatrixXd scores<kRgbBlock>(Objective<kRgbBlock>&, const Linearization<kRgbBlock>&,
+                                           const Instruments<kRgbBlock>*, const Eigen::MatrixXd&,
+                                           const std::vector<bool>&);
+template std::vector<std::vector<double>> naturalStd<kRgbBlock>(const Eigen::MatrixXd&,
+                                                                const Eigen::MatrixXd&,
+                                                                const std::vector<HeldParams>&);
+template double precision<kRgbBlock>(const ParameterState<kRgbBlock>&,
+                                     const std::vector<std::vector<double>>&);
+template Eigen::MatrixXd scores<kGreyBlock>(Objective<kGreyBlock>&,
+                                            const Linearization<kGreyBlock>&,
+                                            const Instruments<kGreyBlock>*, const Eigen::MatrixXd&,
+                                            const std::vector<bool>&);
+template std::vector<std::vector<double>> naturalStd<kGreyBlock>(const Eigen::MatrixXd&,
+                                                                 const Eigen::MatrixXd&,
+                                                                 const std::vector<HeldParams>&);
+template double precision<kGreyBlock>(const ParameterState<kGreyBlock>&,
+                                      const std::vector<std::vector<double>>&);
+
+}  // namespace phongfit

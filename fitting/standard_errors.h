@@ -1,0 +1,37 @@
+// The standard errors of a round's estimate: the sandwich (uncertainty.h) over the flat natural
+// coordinates, per block.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "instruments.h"
+#include "objective.h"
+#include "parameter_state.h"
+
+namespace phongfit {
+
+// S = sum over pixels of m m^T, each pixel's m (pixelMoment) with its own pull on the estimate
+// undone (leaveOneOutScore); `jacobian` is dg/dy and `held` per flat coordinate.
+template <int P>
+Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
+                       const Instruments<P>* instruments, const Eigen::MatrixXd& jacobian,
+                       const std::vector<bool>& held);
+
+// Standard errors per block of its natural parameters from the sandwich with these sums; 0 for
+// the `held` ones.
+template <int P>
+std::vector<std::vector<double>> naturalStd(const Eigen::MatrixXd& jacobian,
+                                            const Eigen::MatrixXd& scores,
+                                            const std::vector<HeldParams>& held);
+
+// Standard errors of 0 for `blocks` blocks: for a tolerance test without them.
+std::vector<std::vector<double>> noStd(int blocks, int p);
+
+// 1 / the sum of the free parameters' relative variances (log n absolute), 0 if one of them has
+// no finite positive standard error: how precise an estimate with these errors is.
+template <int P>
+double precision(const ParameterState<P>& params,
+                 const std::vector<std::vector<double>>& stdNatural);
+
+}  // namespace phongfit
