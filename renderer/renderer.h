@@ -11,6 +11,7 @@
 #include "camera.h"
 #include "lights.h"
 #include "path_set.h"
+#include "render_stats.h"
 #include "scene.h"
 
 namespace phongfit {
@@ -23,24 +24,6 @@ struct RenderOptions {
     int maxDepth = -2;  // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
     bool mis = true;
     bool quiet = false;  // no progress output
-};
-
-// A sample dropped for a non-finite value, and where on its path the value arose.
-struct NonFiniteSample {
-    int x = 0, y = 0;  // pixel
-    int sample = 0;    // index within the pixel
-    int depth = 0;     // path vertex, Mitsuba's count (1 = the surface the camera sees)
-    int bsdf = -1;     // Scene::bsdfs index of the surface there; -1: the path had left the scene
-};
-
-struct RenderStats {
-    double seconds = 0;
-    std::uint64_t rays = 0;
-    std::uint64_t samples = 0;  // pixel samples traced
-    int spp = 0;                // requested
-    bool interrupted = false;
-    std::uint64_t nonFinite = 0;  // samples dropped: NaN, or infinite or beyond float range
-    std::vector<NonFiniteSample> nonFiniteFirst;  // the first few, by pixel then sample
 };
 
 struct RenderResult {
