@@ -1,99 +1,19 @@
 #include "renderer.h"
 
 #include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/combinable.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
-#include <cmath>
-#include <limits>
-#include <tuple>
 
 #include "defensive_sampler.h"
 #include "error.h"
 #include "interrupt.h"
 #include "path_integrator.h"
 #include "progress.h"
+#include "rgb_film.h"
+#include "tile_loop.h"
 
 namespace phongfit {
-namespace {
-
-constexpr int kTileSize = 16;
-
-struct Tile {
-    int x0, y0, x1, y1;
-    int pixels() const { return (x1 - x0) * (y1 - y0); }
-};
-
-std::vector<Tile> makeTiles(int width, int height) {
-    std::vector<Tile> tiles;
-    for (int y = 0; y < height; y += kTileSize)
-        for (int x = 0; x < width; x += kTileSize)
-            tiles.push_back(
-                {x, y, std::min(x + kTileSize, width), std::min(y + kTileSize, height)});
-    return tiles;
-}
-
-// Where on the film a pixel sample lands. Box: uniform over the pixel. Gaussian: the filter is
-// importance-sampled (Box-Muller around the pixel centre), so every sample still belongs to one
-// pixel with weight 1 and no splatting is needed (as pbrt-v4).
-Vec2d filmPosition(const SensorDesc& sensor, int x, int y, double u0, double u1) {
-    if (sensor.filter == SensorDesc::Filter::Box) return Vec2d(x + u0, y + u1);
-    const double r = sensor.gaussianStddev * std::sqrt(-2 * std::log1p(-u0));
-    return Vec2d(x + 0.5 + r * std::cos(2 * kPi * u1), y + 0.5 + r * std::sin(2 * kPi * u1));
-}
-
-std::uint32_t pixelIndex(int x, int y, int width) { return std::uint32_t(y) * width + x; }
-
-struct RadianceSink {
-    Color3 sum = Color3::Zero();
-    void add(const Color3& c, std::span<const PathVertex>) { sum += c; }
-};
-
-// A sample must stay finite in the float image, not only in double.
-bool representable(const Color3& c) {
-    return (c.abs() <= double(std::numeric_limits<float>::max())).all();
-}
-
-// Replays a sample to find the vertex at which its sum stopped being representable.
-struct DiagnosingSink {
-    NonFiniteSample& where;  // gets depth and bsdf
-    Color3 sum = Color3::Zero();
-    int depth = 0, bsdf = -1;  // of the vertex being traced
-    bool found = false;
-    void vertex(int d, int b) { depth = d, bsdf = b; }
-    void add(const Color3& c, std::span<const PathVertex>) {
-        sum += c;
-        if (found || representable(sum)) return;
-        found = true;
-        where.depth = depth;
-        where.bsdf = bsdf;
-    }
-};
-
-constexpr std::size_t kNonFiniteReported = 10;
-
-bool pathOrder(const NonFiniteSample& a, const NonFiniteSample& b) {
-    return std::tie(a.y, a.x, a.sample) < std::tie(b.y, b.x, b.sample);
-}
-
-// Keeps the first kNonFiniteReported samples in path order, whatever order they arrive in.
-void keepFirst(std::vector<NonFiniteSample>& list, const NonFiniteSample& s) {
-    list.insert(std::upper_bound(list.begin(), list.end(), s, pathOrder), s);
-    if (list.size() > kNonFiniteReported) list.pop_back();
-}
-
-template <typename F>
-void runInArena(int threads, F&& f) {
-    tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-    arena.execute(std::forward<F>(f));
-}
-
-}  // namespace
 
 Renderer::Renderer(Scene scene)
     : scene_(std::move(scene)),
@@ -118,93 +38,20 @@ RenderResult Renderer::render(const RenderOptions& options) const {
         *sampler, {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, options.mis});
 
     const int width = camera_.width(), height = camera_.height();
-    const std::size_t pixels = std::size_t(width) * height;
-    std::vector<double> sum(3 * pixels, 0.0), sumSq(3 * pixels, 0.0);
-    std::vector<std::uint32_t> count(pixels, 0);
-    tbb::combinable<std::uint64_t> rays([] { return std::uint64_t(0); });
-    tbb::combinable<std::uint64_t> nonFinite([] { return std::uint64_t(0); });
-    tbb::combinable<std::vector<NonFiniteSample>> nonFiniteFirst;
-    const std::vector<Tile> tiles = makeTiles(width, height);
-
-    // Passes over the whole image, so an interrupt leaves every pixel with samples: the first pass
-    // (one sample per pixel) always completes; later passes grow to spp / 8 and stop at the next
-    // tile on an interrupt. Each pixel is the mean of its own samples.
-    Progress progress("render", std::uint64_t(spp) * pixels, "samples", options.quiet);
-    const auto start = std::chrono::steady_clock::now();
-    bool interrupted = false;
-    for (int s0 = 0, passSize = 1; s0 < spp && !interrupted;
-         s0 += passSize, passSize = std::min(2 * passSize, std::max(1, spp / 8))) {
-        const int s1 = std::min(spp, s0 + passSize);
-        const bool interruptible = s0 > 0;
-        runInArena(options.threads, [&] {
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
-                    std::uint64_t& rayCount = rays.local();
-                    for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                        if (interruptible && interruptRequested()) return;
-                        const Tile& tile = tiles[t];
-                        for (int y = tile.y0; y < tile.y1; ++y)
-                            for (int x = tile.x0; x < tile.x1; ++x) {
-                                const std::uint32_t p = pixelIndex(x, y, width);
-                                const CounterRng rng(options.seed, p);
-                                for (int s = s0; s < s1; ++s) {
-                                    const Vec2d film = filmPosition(
-                                        scene_.sensor, x, y, rng.uniform(s, 0), rng.uniform(s, 1));
-                                    RadianceSink sink;
-                                    integrator.trace(camera_.generateRay(film.x(), film.y()), rng,
-                                                     s, sink, rayCount);
-                                    if (!representable(sink.sum)) {
-                                        ++nonFinite.local();
-                                        NonFiniteSample where{x, y, s};
-                                        DiagnosingSink diagnosis{where};
-                                        std::uint64_t replayRays = 0;
-                                        integrator.trace(camera_.generateRay(film.x(), film.y()),
-                                                         rng, s, diagnosis, replayRays);
-                                        keepFirst(nonFiniteFirst.local(), where);
-                                        continue;
-                                    }
-                                    for (int c = 0; c < 3; ++c) {
-                                        sum[3 * p + c] += sink.sum[c];
-                                        sumSq[3 * p + c] += sink.sum[c] * sink.sum[c];
-                                    }
-                                    ++count[p];
-                                }
-                            }
-                        progress.advance(std::uint64_t(s1 - s0) * tile.pixels());
-                    }
-                });
-        });
-        interrupted = interruptRequested();
-    }
+    RgbFilm film(width, height, spp);
+    Progress progress("render", std::uint64_t(spp) * width * height, "samples", options.quiet);
+    RenderStats stats = traceTiles(TileLoop{.integrator = integrator,
+                                            .camera = camera_,
+                                            .sensor = scene_.sensor,
+                                            .seed = options.seed,
+                                            .threads = options.threads,
+                                            .samples = spp,
+                                            .stop = interruptRequested,
+                                            .progress = &progress},
+                                   film);
     progress.finish();
-
-    RenderResult result;
-    result.width = width;
-    result.height = height;
-    result.rgb.resize(3 * pixels);
-    result.variance.resize(3 * pixels);
-    result.sampleCount = count;
-    for (std::size_t p = 0; p < pixels; ++p) {
-        const double n = count[p];
-        for (int c = 0; c < 3; ++c) {
-            const double mean = n > 0 ? sum[3 * p + c] / n : 0;
-            const double var =
-                n > 1 ? std::max(0.0, sumSq[3 * p + c] / n - mean * mean) / (n - 1) : 0;
-            result.rgb[3 * p + c] = float(mean);
-            result.variance[3 * p + c] = float(var);
-        }
-        result.stats.samples += count[p];
-    }
-    result.stats.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    result.stats.rays = rays.combine(std::plus<>());
-    result.stats.nonFinite = nonFinite.combine(std::plus<>());
-    nonFiniteFirst.combine_each([&](const std::vector<NonFiniteSample>& list) {
-        for (const NonFiniteSample& s : list) keepFirst(result.stats.nonFiniteFirst, s);
-    });
-    result.stats.spp = spp;
-    result.stats.interrupted = interrupted;
-    return result;
+    stats.spp = spp;
+    return film.result(std::move(stats));
 }
 
 namespace {
@@ -294,6 +141,7 @@ PathSet Renderer::record(const RecordOptions& options) const {
 
     const int width = camera_.width(), height = camera_.height();
     const std::vector<Tile> tiles = makeTiles(width, height);
+    const auto pixelIndex = [&](int x, int y) { return std::uint32_t(y) * width + x; };
     std::vector<TileRecord> records(tiles.size());
     // Fixed per pixel, not decided by the pixel's own samples, so every pixel's estimate stays
     // unbiased.
@@ -313,7 +161,7 @@ PathSet Renderer::record(const RecordOptions& options) const {
                     rec.termStart.push_back(0);
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x) {
-                            const std::uint32_t p = pixelIndex(x, y, width);
+                            const std::uint32_t p = pixelIndex(x, y);
                             const CounterRng rng(options.seed, p);
                             Color3 background = Color3::Zero();
                             const int paths = pathsAt(x, y);
@@ -363,7 +211,7 @@ PathSet Renderer::record(const RecordOptions& options) const {
         std::uint32_t local = 0;
         for (int y = tiles[t].y0; y < tiles[t].y1; ++y)
             for (int x = tiles[t].x0; x < tiles[t].x1; ++x)
-                where[pixelIndex(x, y, width)] = {std::uint32_t(t), local++};
+                where[pixelIndex(x, y)] = {std::uint32_t(t), local++};
     }
     for (std::size_t p = 0; p < pixels; ++p) {
         const TileRecord& rec = records[where[p].tile];
