@@ -242,7 +242,9 @@ FitResult runFit(const FitArgs& args) {
         o.maxDepth = v.maxDepth;
         o.fittedBsdfs = v.fittedBsdfs;
         o.theta0 = theta0;
-        return v.renderer->record(o);
+        // An interrupted recording still holds every pixel (the mean of the paths it got); the
+        // fitter polls the same flag (stopRequested), ends the round and marks the fit interrupted.
+        return v.renderer->record(o).paths;
     };
     options.onRound = [&](const FitRound& r) {
         if (args.quiet) return;

@@ -1,6 +1,7 @@
 // Renders a scene description to an image, or records its paths for the fitter. Builds the Embree
-// scene once; tiles run on TBB; every random number is keyed by (seed, pixel, sample, dimension),
-// so an image is bit-identical for a seed whatever the thread count.
+// scene once; both run the one tile loop (tile_loop.h) on TBB, which polls interruptRequested();
+// every random number is keyed by (seed, pixel, sample, dimension), so an image or a recording is
+// bit-identical for a seed whatever the thread count.
 #pragma once
 
 #include <cstdint>
@@ -47,6 +48,14 @@ struct RecordOptions {
     double defensive = 0.2;             // share of cosine sampling at fitted vertices
 };
 
+struct RecordResult {
+    PathSet paths;
+    // As a render's: non-finite samples dropped (each pixel the mean of those it kept); after an
+    // interrupt every pixel still holds the mean of the paths it got (at least one), fewer than
+    // asked.
+    RenderStats stats;
+};
+
 class Renderer {
 public:
     explicit Renderer(Scene scene);
@@ -54,7 +63,7 @@ public:
 
     const Scene& scene() const { return scene_; }
     RenderResult render(const RenderOptions& options) const;
-    PathSet record(const RecordOptions& options) const;
+    RecordResult record(const RecordOptions& options) const;
 
     // The depth the options ask for, resolved against the scene's integrator.
     int effectiveMaxDepth(int requested) const;

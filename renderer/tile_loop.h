@@ -1,6 +1,6 @@
-// The one loop over passes, tiles, pixels and samples (as pbrt-v4's ImageTileIntegrator::Render).
-// What differs between its uses, what is kept of a sample, is a film the loop feeds (rgb_film.h);
-// the policies are written once, here:
+// The one loop over passes, tiles, pixels and samples that rendering and path recording share (as
+// pbrt-v4's ImageTileIntegrator::Render). What differs, what is kept of a sample, is a film the
+// loop feeds (rgb_film.h, path_set_film.h); the policies are written once, here:
 // - every random number is keyed by (seed, pixel, sample, dimension), and a pixel's samples arrive
 //   in order, so results are bit-identical for a seed whatever the thread count;
 // - passes over the whole film, so a stop leaves every pixel with samples: the first pass (one
