@@ -98,7 +98,7 @@ RecordResult Renderer::record(const RecordOptions& options) const {
         slots[options.fittedBsdfs[k]] = int(k);
         materials[options.fittedBsdfs[k]] = options.theta0[k];
     }
-    const auto sampler = makePhongSampler<double>("lafortune");
+    const auto sampler = makePhongSampler<double>(options.sampler);
     const DefensiveSampler defensive(options.defensive);
     const PathIntegrator integrator(
         scene_, *geometry_, *lights_, materials, slots, *sampler, defensive,

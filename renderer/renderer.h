@@ -46,6 +46,7 @@ struct RecordOptions {
     std::vector<int> fittedBsdfs;       // scene bsdf indices, in slot order
     std::vector<PhongMaterial> theta0;  // per slot: the parameters to record at
     double defensive = 0.2;             // share of cosine sampling at fitted vertices
+    std::string sampler = "lafortune";  // at vertices on materials that are not fitted
 };
 
 struct RecordResult {

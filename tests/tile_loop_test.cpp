@@ -1,6 +1,6 @@
 // Rendering and path recording run one tile loop (renderer/tile_loop.h), so they share its
-// policies: a recording with no fitted material is the render (same random numbers, same non-finite
-// samples left out), and a recording polls the interrupt flag as a render does.
+// policies: a recording with no fitted material is the render (same random numbers, same sampler,
+// same non-finite samples left out), and a recording polls the interrupt flag as a render does.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -22,19 +22,21 @@ Renderer cornell() {
         loadScene(kCornell, {{"width", std::to_string(kSize)}, {"height", std::to_string(kSize)}}));
 }
 
-RenderResult render(const Renderer& renderer) {
+RenderResult render(const Renderer& renderer, const std::string& sampler) {
     RenderOptions options;
     options.spp = 4;
     options.seed = 9;
+    options.sampler = sampler;
     options.quiet = true;
     return renderer.render(options);
 }
 
 // All paths fold into the background: the recording's image.
-RecordResult recordUnfitted(const Renderer& renderer) {
+RecordResult recordUnfitted(const Renderer& renderer, const std::string& sampler) {
     RecordOptions options;
     options.spp = 4;
     options.seed = 9;
+    options.sampler = sampler;
     return renderer.record(options);
 }
 
@@ -53,12 +55,22 @@ double largestDifference(const RenderResult& image, const PathSet& paths) {
 
 TEST(TileLoop, RecordingWithNoFittedMaterialIsTheRender) {
     const Renderer renderer = cornell();
-    const RecordResult recorded = recordUnfitted(renderer);
-    const RenderResult image = render(renderer);
+    const RecordResult recorded = recordUnfitted(renderer, "lafortune");
+    const RenderResult image = render(renderer, "lafortune");
     EXPECT_LT(largestDifference(image, recorded.paths), 1e-5);
     EXPECT_EQ(recorded.stats.samples, image.stats.samples);
     EXPECT_EQ(recorded.stats.rays, image.stats.rays);
     EXPECT_FALSE(recorded.stats.interrupted);
+}
+
+TEST(TileLoop, RecordingSamplesUnfittedMaterialsWithItsSampler) {
+    const Renderer renderer = cornell();
+    EXPECT_EQ(RecordOptions().sampler, "lafortune");
+    const RecordResult cosine = recordUnfitted(renderer, "cosine");
+    EXPECT_LT(largestDifference(render(renderer, "cosine"), cosine.paths), 1e-5);
+    EXPECT_GT(largestDifference(render(renderer, "lafortune"), cosine.paths), 0.1)
+        << "the cosine sampler gave the lafortune sampler's image";
+    EXPECT_ANY_THROW(recordUnfitted(renderer, "no such sampler"));
 }
 
 // Sets the interrupt flag for a scope, as a signal would.
