@@ -1,6 +1,7 @@
 // Renders a scene description to an image, or records its paths for the fitter. Builds the Embree
-// scene once; tiles run on TBB; every random number is keyed by (seed, pixel, sample, dimension),
-// so an image is bit-identical for a seed whatever the thread count.
+// scene once; both run the one tile loop (tile_loop.h) on TBB, which polls interruptRequested();
+// every random number is keyed by (seed, pixel, sample, dimension), so an image or a recording is
+// bit-identical for a seed whatever the thread count.
 #pragma once
 
 #include <cstdint>
@@ -11,6 +12,7 @@
 #include "camera.h"
 #include "lights.h"
 #include "path_set.h"
+#include "render_stats.h"
 #include "scene.h"
 
 namespace phongfit {
@@ -23,24 +25,6 @@ struct RenderOptions {
     int maxDepth = -2;  // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
     bool mis = true;
     bool quiet = false;  // no progress output
-};
-
-// A sample dropped for a non-finite value, and where on its path the value arose.
-struct NonFiniteSample {
-    int x = 0, y = 0;  // pixel
-    int sample = 0;    // index within the pixel
-    int depth = 0;     // path vertex, Mitsuba's count (1 = the surface the camera sees)
-    int bsdf = -1;     // Scene::bsdfs index of the surface there; -1: the path had left the scene
-};
-
-struct RenderStats {
-    double seconds = 0;
-    std::uint64_t rays = 0;
-    std::uint64_t samples = 0;  // pixel samples traced
-    int spp = 0;                // requested
-    bool interrupted = false;
-    std::uint64_t nonFinite = 0;  // samples dropped: NaN, or infinite or beyond float range
-    std::vector<NonFiniteSample> nonFiniteFirst;  // the first few, by pixel then sample
 };
 
 struct RenderResult {
@@ -62,6 +46,15 @@ struct RecordOptions {
     std::vector<int> fittedBsdfs;       // scene bsdf indices, in slot order
     std::vector<PhongMaterial> theta0;  // per slot: the parameters to record at
     double defensive = 0.2;             // share of cosine sampling at fitted vertices
+    std::string sampler = "lafortune";  // at vertices on materials that are not fitted
+};
+
+struct RecordResult {
+    PathSet paths;
+    // As a render's: non-finite samples dropped (each pixel the mean of those it kept); after an
+    // interrupt every pixel still holds the mean of the paths it got (at least one), fewer than
+    // asked.
+    RenderStats stats;
 };
 
 class Renderer {
@@ -71,7 +64,7 @@ public:
 
     const Scene& scene() const { return scene_; }
     RenderResult render(const RenderOptions& options) const;
-    PathSet record(const RecordOptions& options) const;
+    RecordResult record(const RecordOptions& options) const;
 
     // The depth the options ask for, resolved against the scene's integrator.
     int effectiveMaxDepth(int requested) const;

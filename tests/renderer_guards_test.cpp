@@ -115,6 +115,51 @@ TEST(RendererGuards, RenderSidecarSaysWhereNonFiniteSamplesCameFrom) {
     fs::remove_all(dir);
 }
 
+// A recording leaves out the same samples: with no fitted material it is the render, counts and
+// diagnosis included, and each pixel is the mean of the samples it kept.
+TEST(RendererGuards, RecordingLeavesOutTheNonFiniteSamplesARenderDoes) {
+    const Renderer renderer(parseScene(overflowingScene(24), "overflow.xml"));
+    const RenderResult image = renderWithThreads(renderer, 2);
+    RecordOptions options;
+    options.spp = 2;
+    options.threads = 2;
+    const RecordResult recorded = renderer.record(options);
+    const RenderStats& s = recorded.stats;
+    ASSERT_GT(s.nonFinite, 0u);
+    EXPECT_EQ(s.nonFinite, image.stats.nonFinite);
+    EXPECT_EQ(s.samples, image.stats.samples);
+    ASSERT_EQ(s.nonFiniteFirst.size(), image.stats.nonFiniteFirst.size());
+    for (std::size_t i = 0; i < s.nonFiniteFirst.size(); ++i) {
+        const NonFiniteSample &a = s.nonFiniteFirst[i], &b = image.stats.nonFiniteFirst[i];
+        EXPECT_EQ(std::tie(a.x, a.y, a.sample, a.depth, a.bsdf),
+                  std::tie(b.x, b.y, b.sample, b.depth, b.bsdf));
+    }
+    for (std::size_t p = 0; p < recorded.paths.background.size(); ++p)
+        for (int c = 0; c < 3; ++c)
+            EXPECT_FLOAT_EQ(recorded.paths.background[p][c], image.rgb[3 * p + c]) << p;
+}
+
+TEST(RendererGuards, RecordingOfAFittedMaterialCountsAndTracesNonFiniteSamples) {
+    const Renderer renderer(parseScene(overflowingScene(24), "overflow.xml"));
+    const int hot = renderer.scene().findBsdf("hot");
+    RecordOptions options;
+    options.spp = 2;
+    options.fittedBsdfs = {hot};
+    options.theta0 = {renderer.scene().bsdfs[hot].params};
+    const RecordResult recorded = renderer.record(options);
+    const RenderStats& s = recorded.stats;
+    ASSERT_GT(s.nonFinite, 0u);
+    EXPECT_EQ(s.samples + s.nonFinite, 2u * 24 * 24) << "every sample kept or counted";
+    ASSERT_EQ(s.nonFiniteFirst.size(), std::min<std::size_t>(s.nonFinite, 10));
+    for (const NonFiniteSample& n : s.nonFiniteFirst) {
+        EXPECT_EQ(n.depth, 1);
+        EXPECT_EQ(n.bsdf, hot);
+        EXPECT_GE(n.x, 12) << "the hot sphere is in the right half";
+    }
+    for (const PathTerm& t : recorded.paths.terms) EXPECT_TRUE(t.constant.allFinite());
+    for (const Color<float>& b : recorded.paths.background) EXPECT_TRUE(b.allFinite());
+}
+
 // The overflowing scene with a moderate light: a recording of the sphere's paths.
 RecordOptions recordHot(const Renderer& renderer, int spp) {
     RecordOptions options;
@@ -138,7 +183,7 @@ TEST(RendererGuards, RecordingThatWouldExhaustMemoryIsRefusedNamingTheFlag) {
 
 TEST(RendererGuards, RecordingThatFitsIsNotRefused) {
     const Renderer renderer(parseScene(overflowingScene(16), "small.xml", {{"intensity", "1"}}));
-    const PathSet paths = renderer.record(recordHot(renderer, 4));
+    const PathSet paths = renderer.record(recordHot(renderer, 4)).paths;
     EXPECT_EQ(paths.width, 16);
     EXPECT_GT(paths.terms.size(), 0u);
 }

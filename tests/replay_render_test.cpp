@@ -98,7 +98,7 @@ Aggregates replayed(const Scene& scene, const PhongMaterial& theta1, int spp, in
         options.seed = 1000 + std::uint64_t(k);
         options.fittedBsdfs = {bsdf};
         options.theta0 = {scene.bsdfs[bsdf].params};
-        const PathSet paths = renderer.record(options);
+        const PathSet paths = renderer.record(options).paths;
         terms += paths.terms.size();
         std::vector<double> v(3 * kAggregates, 0.0), count(kAggregates, 0.0);
         for (int p = 0; p < kSize * kSize; ++p) {
@@ -144,7 +144,7 @@ TEST(ReplayAgainstRender, RecordedAtTheta0ReplayedAtTheta1MatchesTheRenderAtThet
     probe.directSpp = 64;
     probe.fittedBsdfs = {scene0.findBsdf("sphere")};
     probe.theta0 = {scene0.bsdfs[probe.fittedBsdfs[0]].params};
-    const std::vector<bool> sphere = spherePixels(Renderer(scene0).record(probe));
+    const std::vector<bool> sphere = spherePixels(Renderer(scene0).record(probe).paths);
     ASSERT_GT(std::count(sphere.begin(), sphere.end(), true), 20);
 
     const Aggregates truth = rendered(cornell(&kTheta1), 1024, sphere);

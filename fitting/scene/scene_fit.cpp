@@ -184,7 +184,7 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
         o.maxDepth = v.maxDepth;
         o.fittedBsdfs = v.fittedBsdfs;
         o.theta0 = theta0;
-        return v.renderer->record(o);
+        return v.renderer->record(o).paths;
     };
     std::vector<Observation> observations;
     for (const SceneView& v : problem.views) observations.push_back(v.observation);

@@ -1,0 +1,62 @@
+// The film a path recording is made on (path_set.h): per pixel the background, in double until the
+// end, and the terms of the paths that reach a fitted material, each scaled to the pixel's mean.
+// Fed by the tile loop (tile_loop.h); tiles record on their own, and assemble() sorts the terms
+// into pixel order.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "path_set.h"
+
+namespace phongfit {
+
+class PathSetFilm {
+    struct TileRecord {
+        std::vector<PathTerm> terms;  // in the order traced; firstVertex into `vertices`
+        std::vector<PathVertex> vertices;
+    };
+
+public:
+    // `paths`: per pixel, how many samples it takes; `tiles`: how many tiles feed the film.
+    PathSetFilm(int width, int height, std::vector<int> paths, std::size_t tiles);
+
+    int samples(std::uint32_t pixel) const { return paths_[pixel]; }
+
+    class Sample {
+    public:
+        Sample(PathSetFilm& film, std::size_t tile, std::uint32_t pixel);
+        void add(const Color3& c, std::span<const PathVertex> vertices);
+        void keep(const Color3&) { ++film_.kept_[pixel_]; }
+        // Undoes everything the sample added.
+        void drop();
+
+    private:
+        PathSetFilm& film_;
+        TileRecord& record_;
+        std::uint32_t pixel_;
+        double scale_;  // 1 / the pixel's paths
+        std::size_t termsBefore_, verticesBefore_;
+        Color3 backgroundBefore_;
+    };
+    Sample startSample(std::size_t tile, std::uint32_t pixel) { return {*this, tile, pixel}; }
+
+    // The path set, terms sorted by pixel, each pixel the mean of the samples it kept (fewer
+    // than it takes after a stop or a dropped sample). Consumes the film.
+    PathSet assemble(int spp, int slots);
+
+    // Bytes a recording holding `terms` terms with `vertices` vertices in all needs at its peak,
+    // when the tiles' records and the assembled set coexist.
+    static double peakBytes(std::size_t pixels, double terms, double vertices);
+
+private:
+    int width_, height_;
+    std::vector<int> paths_;
+    std::vector<Color3> background_;  // summed in double in sample order, as traced
+    std::vector<std::uint32_t> kept_;
+    std::vector<TileRecord> tiles_;
+};
+
+}  // namespace phongfit
