@@ -23,19 +23,20 @@ std::int64_t fileBytes(const std::string& path) {
     return std::int64_t(bytes);
 }
 
+// `perByte`: the pixels a byte of the file may hold beyond kFreeImagePixels.
 void requireDeclaredPixels(const std::string& path, std::int64_t width, std::int64_t height,
-                           std::int64_t fileSize) {
+                           std::int64_t fileSize, std::int64_t perByte) {
     if (width < 0 || height < 0)
         throw Error(fmt::format("cannot read image '{}': its header is cut short", path));
     if (width > kMaxImagePixels || height > kMaxImagePixels || width * height > kMaxImagePixels)
         throw Error(fmt::format("image '{}' is {}x{} pixels (allowed: up to {} pixels)", path,
                                 width, height, kMaxImagePixels));
     const std::int64_t pixels = width * height;
-    if (pixels > kFreeImagePixels && pixels > kMaxPixelsPerFileByte * fileSize)
+    if (pixels > kFreeImagePixels && pixels > perByte * fileSize)
         throw Error(fmt::format(
             "image '{}' is {}x{} pixels in a file of {} bytes (allowed: up to {} pixels a byte "
             "beyond the first {}); the file is truncated or corrupt",
-            path, width, height, fileSize, kMaxPixelsPerFileByte, kFreeImagePixels));
+            path, width, height, fileSize, perByte, kFreeImagePixels));
 }
 
 void requireBlockBytes(const std::string& path, const char* block, std::int64_t bytes) {
@@ -46,6 +47,13 @@ void requireBlockBytes(const std::string& path, const char* block, std::int64_t 
 
 // ---- EXR: OpenEXRCore parses the headers (it checks attribute sizes against the file) with an
 // allocator capped at kMaxExrHeaderAllocation; no pixel data or chunk table is read.
+
+[[noreturn]] void invalidExr(const std::string& path, const char* why) {
+    throw Error(fmt::format("cannot read EXR image '{}': {}; the file is corrupt", path, why));
+}
+
+// A data window as four numbers, min x, min y, max x, max y.
+using ExrWindowValues = std::array<std::int32_t, 4>;
 
 thread_local std::string exrMessage;
 
@@ -135,7 +143,7 @@ void requirePngWithinLimits(const std::string& path, const char* what, std::int6
     constexpr std::array<int, 7> kChannels = {1, 0, 3, 1, 2, 0, 4};  // by colour type
     if (depth <= 0 || colour < 0 || colour > 6 || kChannels[colour] == 0)
         invalidHeader(path, what, "a PNG's IHDR has a bit depth and a known colour type");
-    requireDeclaredPixels(path, width, height, size);
+    requireDeclaredPixels(path, width, height, size, kMaxPixelsPerByte);
     const std::int64_t inflated = height * ((width * kChannels[colour] * depth + 7) / 8 + 1);
     if (inflated > kMaxDeflateRatio * size)
         throw Error(fmt::format(
@@ -160,8 +168,9 @@ void requireJpegWithinLimits(const std::string& path, const char* what, std::int
         const bool frame =
             marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 && marker != 0xcc;
         if (frame) {
+            const bool arithmetic = marker >= 0xc9;  // SOF9-11, SOF13-15
             requireDeclaredPixels(path, file.uint(pos + 5, 2, true), file.uint(pos + 3, 2, true),
-                                  size);
+                                  size, arithmetic ? kMaxPixelsPerByteSparse : kMaxPixelsPerByte);
             return;
         }
         pos += length;
@@ -219,7 +228,10 @@ void requireTiffWithinLimits(const std::string& path, const char* what, std::int
     }
     if (width < 0 || height < 0)
         invalidHeader(path, what, "a TIFF's first directory gives the image width and length");
-    requireDeclaredPixels(path, width, height, size);
+    const std::int64_t pixelBytes = std::clamp<std::int64_t>(samples, 1, 1 << 16) *
+                                    ((std::clamp<std::int64_t>(bits, 1, 64) + 7) / 8);
+    requireDeclaredPixels(path, width, height, size,
+                          std::max<std::int64_t>(1, kMaxTiffBytesPerByte / pixelBytes));
     const bool tiled = tileWidth > 0 && tileHeight > 0;
     const double blockPixels =
         tiled ? double(tileWidth) * double(tileHeight)
@@ -227,6 +239,100 @@ void requireTiffWithinLimits(const std::string& path, const char* what, std::int
     const double bytes = blockPixels * double(std::max<std::int64_t>(samples, 1)) *
                          double((std::max<std::int64_t>(bits, 1) + 7) / 8);
     requireBlockBytes(path, tiled ? "tile" : "strip", std::int64_t(std::min(bytes, 0x1p62)));
+}
+
+std::int64_t exrPixelsPerByte(exr_compression_t compression) {
+    switch (compression) {
+        case EXR_COMPRESSION_DWAA:
+        case EXR_COMPRESSION_DWAB:
+            return kMaxPixelsPerByteSparse;
+        case EXR_COMPRESSION_PIZ:
+            return kMaxPixelsPerBytePiz;
+        default:
+            return kMaxPixelsPerByte;
+    }
+}
+
+// The bytes an attribute of a self-delimited type takes as InputFile reads it, from `pos`; -1
+// where it runs past the end of the file.
+std::int64_t selfDelimitedBytes(HeaderBytes& file, std::int64_t pos, const std::string& type,
+                                std::int64_t declared, int maxName) {
+    const std::int64_t start = pos;
+    if (type == "preview") {
+        const std::int64_t width = file.uint(pos, 4, false), height = file.uint(pos + 4, 4, false);
+        return width < 0 || height < 0 ? -1 : 8 + 4 * width * height;
+    }
+    if (type == "stringvector") {  // strings of a 4-byte length each, until the declared size
+        while (pos - start < declared) {
+            const std::int64_t length = file.uint(pos, 4, false);
+            if (length < 0 || length > declared) return -1;
+            pos += 4 + length;
+        }
+        return pos - start;
+    }
+    for (;;) {  // chlist: name, 16 bytes of type, linearity, reserved and sampling; empty name ends
+        int length = 0;
+        for (std::int64_t c; (c = file.uint(pos++, 1, false)) != 0; ++length)
+            if (c < 0 || length >= maxName) return -1;
+        if (length == 0) return pos - start;
+        pos += 16;
+    }
+}
+
+// The headers as OpenEXR's InputFile reads them (name, type, 4-byte size, value; an empty name
+// ends a header, and in a multi-part file an empty header ends the list): every attribute must
+// fit in the file, as InputFile allocates what the size says before reading, and each part's
+// dataWindow must be the one OpenEXRCore read.
+void requireRawExrHeaders(const std::string& path, std::int64_t size,
+                          const std::vector<ExrWindowValues>& windows) {
+    HeaderBytes file(path);
+    const std::int64_t version = file.uint(4, 4, false);
+    const bool multipart = version >= 0 && (version & 0x1000) != 0;
+    const int maxName = version >= 0 && (version & 0x400) != 0 ? 255 : 31;
+    std::int64_t pos = 8;
+    const auto readName = [&](std::string& name) {
+        name.clear();
+        for (std::int64_t c; (c = file.uint(pos++, 1, false)) != 0;) {
+            if (c < 0 || int(name.size()) >= maxName) return false;
+            name += char(c);
+        }
+        return true;
+    };
+    std::string name, type;
+    for (std::size_t part = 0;; ++part) {
+        if (!readName(name))
+            invalidExr(path, "an attribute name runs past its limit or the end of the file");
+        if (name.empty() && (!multipart || part > 0)) break;  // end of the (last) header
+        for (;;) {
+            if (name.empty()) break;  // end of this part's header
+            if (!readName(type))
+                invalidExr(path, "an attribute type runs past its limit or the end of the file");
+            const std::int64_t bytes = file.uint(pos, 4, false);
+            pos += 4;
+            if (bytes < 0 || bytes > size - pos)
+                throw Error(fmt::format(
+                    "cannot read EXR image '{}': attribute '{}' declares {} bytes, beyond the "
+                    "end of the file ({} bytes)",
+                    path, name, bytes, size));
+            // InputFile reads these three types by their contents, not by the size: a size that
+            // disagrees with the contents sends it elsewhere in the file than OpenEXRCore.
+            if (type == "chlist" || type == "stringvector" || type == "preview")
+                if (selfDelimitedBytes(file, pos, type, bytes, maxName) != bytes)
+                    invalidExr(path, "an attribute's size disagrees with its contents");
+            if (name == "dataWindow" && type == "box2i" && bytes >= 16) {
+                const ExrWindowValues window = {std::int32_t(file.uint(pos, 4, false)),
+                                                std::int32_t(file.uint(pos + 4, 4, false)),
+                                                std::int32_t(file.uint(pos + 8, 4, false)),
+                                                std::int32_t(file.uint(pos + 12, 4, false))};
+                if (part >= windows.size() || !(window == windows[part]))
+                    invalidExr(path, "its header reads as two different data windows");
+            }
+            pos += bytes;
+            if (!readName(name))
+                invalidExr(path, "an attribute name runs past its limit or the end of the file");
+        }
+        if (!multipart) break;
+    }
 }
 
 }  // namespace
@@ -252,14 +358,14 @@ void requireLdrWithinLimits(const std::string& path, const char* what, bool pngO
     if (tiff) requireTiffWithinLimits(path, what, size);
 }
 
-ExrWindow requireExrWithinLimits(const std::string& path) {
+void requireExrWithinLimits(const std::string& path) {
     const std::int64_t fileSize = fileBytes(path);
     const ExrHeaders headers(path);
     const exr_const_context_t context = headers.context();
     int parts = 0;
     headers.check(exr_get_count(context, &parts));
     std::int64_t chunks = 0;
-    ExrWindow first;
+    std::vector<ExrWindowValues> windows;
     for (int part = 0; part < parts; ++part) {
         exr_storage_t storage;
         headers.check(exr_get_storage(context, part, &storage));
@@ -270,10 +376,12 @@ ExrWindow requireExrWithinLimits(const std::string& path) {
                 path));
         exr_attr_box2i_t window;
         headers.check(exr_get_data_window(context, part, &window));
-        if (part == 0) first = {window.min.x, window.min.y, window.max.x, window.max.y};
+        windows.push_back({window.min.x, window.min.y, window.max.x, window.max.y});
         const std::int64_t width = std::int64_t(window.max.x) - window.min.x + 1;
         const std::int64_t height = std::int64_t(window.max.y) - window.min.y + 1;
-        requireDeclaredPixels(path, width, height, fileSize);
+        exr_compression_t compression;
+        headers.check(exr_get_compression(context, part, &compression));
+        requireDeclaredPixels(path, width, height, fileSize, exrPixelsPerByte(compression));
         std::int32_t partChunks = 0;
         headers.check(exr_get_chunk_count(context, part, &partChunks));
         chunks += partChunks;
@@ -297,7 +405,7 @@ ExrWindow requireExrWithinLimits(const std::string& path) {
             "image '{}' declares {} chunks in a file of {} bytes (each takes at least 16 bytes); "
             "the file is truncated or corrupt",
             path, chunks, fileSize));
-    return first;
+    requireRawExrHeaders(path, fileSize, windows);
 }
 
 }  // namespace phongfit

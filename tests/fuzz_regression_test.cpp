@@ -129,5 +129,34 @@ TEST(PngFuzz, TiffDirectoryOffsetNearTwoToThe64IsRefused) {
     EXPECT_NE(e.find("a TIFF's first directory lies within the file"), std::string::npos) << e;
 }
 
+// exr_fuzz, an hour's run (timeouts under ASan; 1.2 to 1.7 GB asked for in release): a channel
+// list whose entries run past its declared size. InputFile reads a channel list by its entries,
+// OpenEXRCore by its size, so the two read the rest of the header differently (a data window of
+// a million pixels, an attribute of 1.7 GB). Self-delimited attributes must now fill their size.
+TEST(ExrFuzz, ChannelListRunningPastItsSizeIsRefused) {
+    const std::string path = fuzzInput("exr_chlist_overrun.exr");
+    const std::string e = errorOf([&] { readImage(path); });
+    EXPECT_NE(e.find("an attribute's size disagrees with its contents"), std::string::npos) << e;
+}
+
+// exr_fuzz: a ZIP-compressed 33281 x 383 image in 437 bytes (260 MB allocated before the first
+// chunk failed). Deflate cannot pack that many pixels into so few bytes.
+TEST(ExrFuzz, ZipImageDenserThanDeflateCanPackIsRefused) {
+    const std::string path = fuzzInput("exr_zip_dense.exr");
+    const std::string e = errorOf([&] { readImage(path); });
+    EXPECT_NE(e.find("is 33281x383 pixels in a file of 437 bytes (allowed: up to 1032 pixels a "
+                     "byte"),
+              std::string::npos)
+        << e;
+}
+
+// png_fuzz: a Huffman-coded JPEG declaring 250 x 62979 pixels in 528 bytes (300 MB decoded from
+// garbage; a timeout under ASan). Huffman coding takes a bit at least per 8 x 8 block.
+TEST(PngFuzz, JpegDenserThanHuffmanCodingCanPackIsRefused) {
+    const std::string path = fuzzInput("jpeg_dense.jpg");
+    const std::string e = errorOf([&] { readImage(path); });
+    EXPECT_NE(e.find("is 250x62979 pixels in a file of 528 bytes"), std::string::npos) << e;
+}
+
 }  // namespace
 }  // namespace phongfit

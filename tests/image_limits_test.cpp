@@ -124,8 +124,10 @@ TEST_F(ImageLimitsTest, ExrWhoseChunkTableCannotFitInTheFileIsRefused) {
 }
 
 TEST_F(ImageLimitsTest, ExrWhoseChunkDecodesToTooManyBytesIsRefused) {
-    // One scanline of 4 M pixels in 12 float channels: 192 MiB to decode in one chunk.
-    const std::string e = exrError({.width = 1 << 22, .height = 1, .floatChannels = 12});
+    // One scanline of 4 M pixels in 12 float channels: 192 MiB to decode in one chunk (the file is
+    // large enough for 4 M pixels to pass the density check).
+    const std::string e =
+        exrError({.width = 1 << 22, .height = 1, .floatChannels = 12, .tail = 4096});
     EXPECT_NE(e.find("one chunk decodes to 201326592 bytes (allowed: up to 134217728 bytes)"),
               std::string::npos)
         << e;
@@ -178,8 +180,8 @@ TEST_F(ImageLimitsTest, PngHeadersAreCheckedBeforeDecoding) {
     const std::string huge = write("huge.png", pngWithHeader(100000, 100000, 64));
     EXPECT_NE(errorOf([&] { readImage(huge); }).find("is 100000x100000 pixels (allowed: up to"),
               std::string::npos);
-    // 2000 x 2000 RGB is 12 MB to inflate; deflate cannot hold it in 1 kB.
-    const std::string dense = write("dense.png", pngWithHeader(2000, 2000, 1024));
+    // 2000 x 2000 RGB is 12 MB to inflate; deflate cannot hold it in 5 kB.
+    const std::string dense = write("dense.png", pngWithHeader(2000, 2000, 5000));
     const std::string e = errorOf([&] { readImage(dense); });
     EXPECT_NE(e.find("is 2000x2000 pixels, 12002000 bytes to inflate from a file of"),
               std::string::npos)
@@ -228,7 +230,7 @@ TEST_F(ImageLimitsTest, TiffDirectoryIsCheckedBeforeDecoding) {
               std::string::npos);
     // 8192 x 8192, three 16-bit samples in one strip: 384 MiB to decode at once.
     const std::string strip =
-        write("strip.tif", tiff({{256, 8192}, {257, 8192}, {258, 16}, {277, 3}}, 4096));
+        write("strip.tif", tiff({{256, 8192}, {257, 8192}, {258, 16}, {277, 3}}, 100000));
     const std::string e = errorOf([&] { readImage(strip); });
     EXPECT_NE(e.find("one strip decodes to 402653184 bytes (allowed: up to 134217728 bytes)"),
               std::string::npos)
