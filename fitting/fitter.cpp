@@ -51,11 +51,14 @@ FitResult fit(const std::vector<Observation>& observations, const RecordAll& rec
 FitResult fitMaterials(const std::vector<Observation>& observations, const PathRecorder& record,
                        const std::vector<PhongMaterial>& start, const FitOptions& options) {
     std::array<std::vector<PathSet>, 2> paths;
-    const RecordAll recordAll = [&](const std::vector<PhongMaterial>& theta, int round) {
+    const RecordAll recordAll = [&](const std::vector<PhongMaterial>& theta, int round,
+                                    const std::vector<std::vector<float>>& importance) {
+        static const std::vector<float> none;
         for (int k = 0; k < 2; ++k) {
             paths[k].clear();
             for (std::size_t v = 0; v < observations.size(); ++v)
-                paths[k].push_back(record(int(v), theta, 2 * round + k));
+                paths[k].push_back(record(int(v), theta, 2 * round + k,
+                                          importance.empty() ? none : importance[v]));
         }
         return RoundSets{&paths[0], &paths[1]};
     };
@@ -66,7 +69,8 @@ FitResult fitPathSets(const std::vector<Observation>& observations,
                       const std::vector<PathSet>& first, const std::vector<PathSet>& second,
                       const std::vector<PhongMaterial>& start, const FitOptions& options,
                       int rounds) {
-    const RecordAll recordAll = [&](const std::vector<PhongMaterial>&, int) {
+    const RecordAll recordAll = [&](const std::vector<PhongMaterial>&, int,
+                                    const std::vector<std::vector<float>>&) {
         return RoundSets{&first, &second};
     };
     return fit(observations, recordAll, start, options, rounds);

@@ -128,9 +128,11 @@ struct FitResult {
 // Records the path set of `view` at the estimate `theta0` (indexed by slot). It is called twice per
 // view and round, with `recording` = 2 * round and 2 * round + 1, for the two sets the estimator
 // needs; the two must be statistically independent, so the recorder must draw its random numbers
-// from `recording` (e.g. seed it with it).
-using PathRecorder =
-    std::function<PathSet(int view, const std::vector<PhongMaterial>& theta0, int recording)>;
+// from `recording` (e.g. seed it with it). `importance` (empty in the first round) says per pixel
+// how much a path there is worth to the estimate (path_importance.h): a recorder that spends extra
+// paths in proportion to it (fixed before tracing) gets more precision for its time.
+using PathRecorder = std::function<PathSet(int view, const std::vector<PhongMaterial>& theta0,
+                                           int recording, const std::vector<float>& importance)>;
 
 // The rounds loop. `start` (one material per slot, each valid) is the first estimate and the value
 // unconstrained parameters are held at. Path sets must match their observation's size and have

@@ -11,6 +11,7 @@
 #include "error.h"
 #include "fit_input.h"
 #include "parameter_state.h"
+#include "path_importance.h"
 #include "round_paths.h"
 #include "round_solver.h"
 
@@ -40,9 +41,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     FitResult result;
     ParameterState<P> params(start, options.fitExposure);
     Estimate theta{start, 1.0};
+    std::vector<std::vector<float>> importance;  // per view, for the next round's recording
     for (int round = 0; round < maxRounds; ++round) {
         const auto roundBegin = std::chrono::steady_clock::now();
-        const RoundSets sets = recordAll(theta.materials, round);
+        const RoundSets sets = recordAll(theta.materials, round, importance);
         const double recordSeconds = secondsSince(roundBegin);
         for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
             if (paths->size() != observations.size())
@@ -97,6 +99,19 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             break;
         }
         if (result.converged) break;
+        if (sets.first != sets.second && round + 1 < maxRounds) {
+            // Material blocks only: the exposure is global, no pixel's paths inform it more.
+            std::vector<double> natural, std;
+            const std::vector<typename ParameterState<P>::NaturalVector> y =
+                params.naturalBlocks(theta);
+            for (int b = 0; b < params.materialCount(); ++b)
+                for (int i = 0; i < P; ++i) {
+                    natural.push_back(y[std::size_t(b)][i]);
+                    std.push_back(out.naturalStd[std::size_t(b)][std::size_t(i)]);
+                }
+            importance =
+                pathImportance<P>(observations, *sets.first, *sets.second, natural, std, threads);
+        }
     }
     result.timeSeconds = secondsSince(begin);
     return result;

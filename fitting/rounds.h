@@ -17,8 +17,10 @@ struct RoundSets {
     const std::vector<PathSet>* second;
 };
 
-// Records (or hands out) round `round`'s sets at the materials' estimate.
-using RecordAll = std::function<RoundSets(const std::vector<PhongMaterial>&, int round)>;
+// Records (or hands out) round `round`'s sets at the materials' estimate; `importance` per view
+// and pixel (path_importance.h), empty in the first round.
+using RecordAll = std::function<RoundSets(const std::vector<PhongMaterial>&, int round,
+                                          const std::vector<std::vector<float>>& importance)>;
 
 // At most `maxRounds` rounds from `start` on inputs fitMaterials has checked; P is the block size
 // (kRgbBlock, or kGreyBlock with FitOptions::grey). Throws Error when the recorder's sets do not

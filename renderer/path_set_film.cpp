@@ -1,5 +1,7 @@
 #include "path_set_film.h"
 
+#include <algorithm>
+
 namespace phongfit {
 
 PathSetFilm::PathSetFilm(int width, int height, std::vector<int> paths, std::size_t tiles)
@@ -52,6 +54,9 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.background.resize(pixels);
     for (std::size_t p = 0; p < pixels; ++p)
         set.background[p] = (background_[p] * rescale[p]).cast<float>();
+    if (std::any_of(kept_.begin(), kept_.end(),
+                    [&](std::uint32_t k) { return k != std::uint32_t(spp); }))
+        set.pixelPaths = kept_;
 
     // A counting sort by pixel, stable: a pixel lies in one tile, whose record holds its terms in
     // the order they were traced, so they keep it. Vertices follow their terms.

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <numeric>
 
 #include "defensive_sampler.h"
 #include "error.h"
@@ -30,7 +31,7 @@ struct CountingSink {
 // Bytes a recording needs at its peak, from a pilot of one path in each of up to 4096 pixels
 // spread over the film.
 double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
-                      const SensorDesc& sensor, std::uint64_t seed, int spp) {
+                      const SensorDesc& sensor, std::uint64_t seed, double spp) {
     const std::size_t pixels = std::size_t(camera.width()) * camera.height();
     const std::size_t pilots = std::min<std::size_t>(pixels, 4096);
     CountingSink sink;
@@ -104,20 +105,11 @@ RecordResult Renderer::record(const RecordOptions& options) const {
         scene_, *geometry_, *lights_, materials, slots, *sampler, defensive,
         {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, true});
 
-    // Refuse what would exhaust memory before trying: half the machine's is the budget.
-    const double bytes = recordingBytes(integrator, camera_, scene_.sensor, options.seed,
-                                        std::max(options.spp, options.directSpp));
-    const double budget = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
-    if (bytes > budget)
-        throw Error(fmt::format(
-            "recording {} paths per pixel of the {}x{} film would take about {:.1f} GB, more than "
-            "half of this machine's memory ({:.1f} GB): lower --spp, or the film size",
-            options.spp, camera_.width(), camera_.height(), bytes / 1e9, 2 * budget / 1e9));
-
     // Paths per pixel, fixed before tracing rather than decided by the pixel's own samples, so
     // every pixel's estimate stays unbiased.
     const int width = camera_.width(), height = camera_.height();
-    std::vector<int> paths(std::size_t(width) * height, options.spp);
+    const std::size_t pixels = std::size_t(width) * height;
+    std::vector<int> paths(pixels, options.spp);
     if (options.directSpp > options.spp)
         runInArena(options.threads, [&] {
             tbb::parallel_for(0, height, [&](int y) {
@@ -130,6 +122,26 @@ RecordResult Renderer::record(const RecordOptions& options) const {
                 }
             });
         });
+    if (!options.extraPaths.empty()) {
+        if (options.extraPaths.size() != pixels ||
+            *std::min_element(options.extraPaths.begin(), options.extraPaths.end()) < 0)
+            throw Error(
+                fmt::format("record: {} extra path counts given for a {}x{} film, each >= 0",
+                            options.extraPaths.size(), width, height));
+        for (std::size_t p = 0; p < pixels; ++p) paths[p] += options.extraPaths[p];
+    }
+
+    // Refuse what would exhaust memory before trying: half the machine's is the budget.
+    const double meanPaths =
+        std::accumulate(paths.begin(), paths.end(), 0.0) / double(std::max<std::size_t>(pixels, 1));
+    const double bytes =
+        recordingBytes(integrator, camera_, scene_.sensor, options.seed, meanPaths);
+    const double budget = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    if (bytes > budget)
+        throw Error(fmt::format(
+            "recording {:.0f} paths per pixel of the {}x{} film would take about {:.1f} GB, more "
+            "than half of this machine's memory ({:.1f} GB): lower --spp, or the film size",
+            meanPaths, width, height, bytes / 1e9, 2 * budget / 1e9));
 
     const int most = *std::max_element(paths.begin(), paths.end());
     PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size());

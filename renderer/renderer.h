@@ -40,6 +40,8 @@ struct RecordOptions {
     // Paths per pixel where the pixel's centre sees a fitted material directly, when more than
     // spp: those pixels carry what the images say about the material.
     int directSpp = 0;
+    // Per pixel (width x height, each >= 0), paths on top of spp and directSpp; empty: none.
+    std::vector<int> extraPaths;
     std::uint64_t seed = 0;
     int threads = 0;
     int maxDepth = -2;

@@ -34,6 +34,9 @@ struct PathSet {
     std::vector<PathTerm> terms;           // sorted by pixel
     std::vector<PathVertex> vertices;
     std::vector<std::uint32_t> pixelStart;  // terms of pixel p are [pixelStart[p], pixelStart[p+1])
+    // Paths each pixel's estimate is the mean of, where they differ from `spp` (a recording that
+    // spends more paths where they inform the fit); empty: `spp` everywhere.
+    std::vector<std::uint32_t> pixelPaths;
 };
 
 }  // namespace phongfit

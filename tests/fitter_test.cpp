@@ -589,7 +589,7 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
     std::vector<std::pair<int, PhongMaterial>> calls;
     // Each recording differs (terms split in recording + 1 parts), the same model.
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
-                                    int recording) {
+                                    int recording, const std::vector<float>&) {
         EXPECT_EQ(view, 0);
         calls.emplace_back(recording, theta0.at(0));
         SphereScene s = scene;
@@ -631,7 +631,8 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
 // Each recording an unbiased but noisy estimate of `scene`: constants times 1 + 10% noise, drawn
 // from seed + the recording's index.
 PathRecorder noisyRecorder(const SphereScene& scene, unsigned seed) {
-    return [scene, seed](int, const std::vector<PhongMaterial>&, int recording) {
+    return [scene, seed](int, const std::vector<PhongMaterial>&, int recording,
+                         const std::vector<float>&) {
         PathSet ps = makePaths(scene);
         std::mt19937 rng(seed + unsigned(recording));
         std::normal_distribution<float> noise(0, 0.1f);
@@ -683,7 +684,8 @@ TEST(Fitter, StopRequestEndsTheFitAfterTheRoundUnderWayWithItsEstimate) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
     bool stop = false;
-    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
+                                    const std::vector<float>&) {
         stop = stop || recording == 3;  // the signal comes while round 1 records its second set
         PathSet ps = makePaths(scene);
         std::mt19937 rng(200 + recording);
@@ -747,7 +749,8 @@ TEST(Fitter, RoundsOnFreshNoisyPathSetsConvergeToTheTruth) {
     const PhongMaterial truth = material(Color3(0.5, 0.35, 0.2), Color3(0.3, 0.4, 0.5), 20);
     const Observation obs = observe(exact, {truth});
     std::vector<int> recordings;
-    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording) {
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
+                                    const std::vector<float>&) {
         recordings.push_back(recording);
         return noisy(exact, 10 + unsigned(recording));
     };

@@ -13,6 +13,7 @@
 #include "comparison_image.h"
 #include "error.h"
 #include "fit_report.h"
+#include "path_importance.h"
 #include "scene_parser.h"
 #include "scene_writer.h"
 
@@ -173,12 +174,18 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
 
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
                    const FitOptions& options) {
-    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
-                                    int round) -> PathSet {
+    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0, int round,
+                                    const std::vector<float>& importance) -> PathSet {
         const SceneView& v = problem.views[view];
         RecordOptions o;
         o.spp = recording.spp;
         o.directSpp = recording.directSpp;
+        if (!importance.empty() && recording.adaptiveSpp > 0) {
+            const auto seen =
+                std::count_if(importance.begin(), importance.end(), [](float w) { return w > 0; });
+            o.extraPaths = allocatePaths(importance, double(recording.adaptiveSpp) * double(seen),
+                                         kMostExtraPaths);
+        }
         o.seed = recording.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
         o.threads = recording.threads;
         o.maxDepth = v.maxDepth;

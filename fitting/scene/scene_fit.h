@@ -57,7 +57,13 @@ struct SceneRecording {
     int directSpp = 0;  // RecordOptions::directSpp
     std::uint64_t seed = 0;
     int threads = 0;
+    // After the first round: this many extra paths per pixel that sees a fitted material, on
+    // average, shared by the paths' importance to the estimate (path_importance.h), at most
+    // kMostExtraPaths in a pixel. 0: spp and directSpp only, as in the first round.
+    int adaptiveSpp = 0;
 };
+
+inline constexpr int kMostExtraPaths = 1024;
 
 // Reads and checks every input. Throws Error naming the file and what is allowed.
 SceneFitProblem loadSceneFit(const SceneFitInputs& inputs);

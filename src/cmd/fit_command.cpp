@@ -34,7 +34,7 @@ struct FitCli {
     std::vector<std::string> views, materials, defines;
     std::string kd, ks;
     std::optional<double> n;
-    int spp = 4, directSpp = 0, compareSpp = 32, rounds = 6;
+    int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
     bool fitExposure = false, ignoreNonFinite = false;
     std::uint64_t seed = 0;
     // Capture fits.
@@ -89,7 +89,7 @@ void runSceneFit(const FitCli& a) {
     if (!a.ks.empty()) in.ks = parseColorOption(a.ks, "--ks");
     in.n = a.n;
     const SceneFitProblem problem = loadSceneFit(in);
-    const SceneRecording recording{a.spp, a.directSpp, a.seed, a.threads};
+    const SceneRecording recording{a.spp, a.directSpp, a.seed, a.threads, a.adaptiveSpp};
     if (!a.quiet)
         options.onRound = [&](const FitRound& r) { printRound(r, problem, a.fitExposure); };
     const FitResult result = fitScene(problem, recording, options);
@@ -184,6 +184,12 @@ void addFitCommand(CLI::App& app) {
                      "paths recorded per round in pixels that see a fitted material directly "
                      "(default: --spp)")
         ->check(CLI::Range(1, 4096));
+    scene
+        ->add_option("--adaptive-spp", a->adaptiveSpp,
+                     "after the first round, this many more paths per pixel that sees a fitted "
+                     "material, on average, spent where they inform the estimate most (0: none)")
+        ->check(CLI::Range(0, 4096))
+        ->capture_default_str();
     scene
         ->add_option("--compare-spp", a->compareSpp,
                      "paths per pixel of the re-rendered column of compare.png")
