@@ -63,6 +63,7 @@ struct ExposureFit {
 
 struct FitRound {
     int round = 0;
+    std::size_t paths = 0;     // traced in the round's recordings, over all views
     double timeSeconds = 0;    // recording + solving
     double recordSeconds = 0;  // in the recorder
     // The two recorded path sets of all views: terms and vertices, in bytes.
@@ -100,8 +101,12 @@ struct FitOptions {
     double tolerance = 1e-3;
     double stdTolerance = 3;
     int maxIterations = 100;  // Ceres iterations per solve
-    int threads = 0;          // 0 = all hardware threads
-    bool verbose = false;     // Ceres' progress on stdout and its brief report on stderr
+    // Seconds the fit may take, recording included (0: no limit). No round starts that the last
+    // round's time says would end past it, and a solve under way at the limit stops there; the
+    // first round always runs. The result then says "time budget".
+    double timeBudget = 0;
+    int threads = 0;       // 0 = all hardware threads
+    bool verbose = false;  // Ceres' progress on stdout and its brief report on stderr
     std::function<void(const FitRound&)> onRound;  // called after each round, e.g. for progress
     // Polled between solver iterations and rounds (e.g. interruptRequested): when it returns
     // true, the solve under way stops, its round is finished with the estimate so far, and no
@@ -119,6 +124,9 @@ struct FitResult {
     // as both recordings), the solver converged.
     bool converged = false;
     bool interrupted = false;  // FitOptions::stopRequested cut the fit short
+    // Why the rounds stopped: "converged", "rounds" (FitOptions::maxRounds spent), "time budget"
+    // (FitOptions::timeBudget) or "interrupted".
+    std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
     std::size_t pixelsUsed = 0;

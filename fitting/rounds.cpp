@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <numeric>
 #include <thread>
 
 #include "convergence.h"
@@ -23,6 +24,16 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+std::size_t tracedPaths(const std::vector<PathSet>& sets) {
+    std::size_t paths = 0;
+    for (const PathSet& set : sets)
+        paths +=
+            set.pixelPaths.empty()
+                ? std::size_t(set.spp) * std::size_t(set.width) * std::size_t(set.height)
+                : std::accumulate(set.pixelPaths.begin(), set.pixelPaths.end(), std::size_t(0));
+    return paths;
+}
+
 std::size_t peakResidentBytes() {
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
@@ -39,10 +50,25 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     const int threads = options.threads > 0 ? options.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
     FitResult result;
+    result.stopReason = "rounds";
+    // A solve under way stops at the time budget as at an interrupt; which one it was is told
+    // apart afterwards.
+    const auto budgetSpent = [&] {
+        return options.timeBudget > 0 && secondsSince(begin) >= options.timeBudget;
+    };
+    FitOptions solveOptions = options;
+    solveOptions.stopRequested = [&] {
+        return budgetSpent() || (options.stopRequested && options.stopRequested());
+    };
     ParameterState<P> params(start, options.fitExposure);
     Estimate theta{start, 1.0};
     std::vector<std::vector<float>> importance;  // per view, for the next round's recording
     for (int round = 0; round < maxRounds; ++round) {
+        if (round > 0 && options.timeBudget > 0 &&
+            secondsSince(begin) + result.rounds.back().timeSeconds > options.timeBudget) {
+            result.stopReason = "time budget";
+            break;
+        }
         const auto roundBegin = std::chrono::steady_clock::now();
         const RoundSets sets = recordAll(theta.materials, round, importance);
         const double recordSeconds = secondsSince(roundBegin);
@@ -54,13 +80,15 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 checkPathSet((*paths)[v], observations[v], int(v), int(start.size()));
         }
         // Later rounds start where the last one ended, near enough for the instruments.
-        RoundSolver<P> solver(observations, *sets.first, *sets.second, params, options, threads,
-                              round == 0);
+        RoundSolver<P> solver(observations, *sets.first, *sets.second, params, solveOptions,
+                              threads, round == 0);
         const Estimate recorded = theta;
         RoundOutcome out = solver.solve(theta);
 
         FitRound r;
         r.round = round;
+        r.paths =
+            tracedPaths(*sets.first) + (sets.first == sets.second ? 0 : tracedPaths(*sets.second));
         r.recordSeconds = recordSeconds;
         r.timeSeconds = secondsSince(roundBegin);
         r.rmse = out.rmse;
@@ -92,13 +120,17 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
-        if (options.stopRequested && options.stopRequested()) {
+        if (solveOptions.stopRequested()) {
             // The round's solves may have been cut short: not a converged estimate.
-            result.interrupted = true;
+            result.interrupted = !budgetSpent();
+            result.stopReason = result.interrupted ? "interrupted" : "time budget";
             result.converged = false;
             break;
         }
-        if (result.converged) break;
+        if (result.converged) {
+            result.stopReason = "converged";
+            break;
+        }
         if (sets.first != sets.second && round + 1 < maxRounds) {
             // Material blocks only: the exposure is global, no pixel's paths inform it more.
             std::vector<double> natural, std;

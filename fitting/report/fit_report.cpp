@@ -41,6 +41,7 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
     nlohmann::json rounds = nlohmann::json::array();
     for (const FitRound& r : result.rounds)
         rounds.push_back({{"round", r.round},
+                          {"paths", r.paths},
                           {"time_s", r.timeSeconds},
                           {"record_time_s", r.recordSeconds},
                           {"rmse", r.rmse},
@@ -56,6 +57,7 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
                           {"rmse", result.rmse},
                           {"converged", result.converged},
                           {"interrupted", result.interrupted},
+                          {"stop_reason", result.stopReason},
                           {"rounds", rounds},
                           {"time_s", result.timeSeconds},
                           {"pixels_used", result.pixelsUsed},

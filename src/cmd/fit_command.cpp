@@ -34,6 +34,7 @@ struct FitCli {
     std::vector<std::string> views, materials, defines;
     std::string kd, ks;
     std::optional<double> n;
+    double timeBudget = 0;
     int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
     bool fitExposure = false, ignoreNonFinite = false;
     std::uint64_t seed = 0;
@@ -73,6 +74,7 @@ void runSceneFit(const FitCli& a) {
     FitOptions options = fitOptions(a);
     options.fitExposure = a.fitExposure;
     options.maxRounds = a.rounds;
+    options.timeBudget = a.timeBudget;
     requireOutputDirectory(a.output);
     for (const std::string& spec : a.views) {
         const auto colon = spec.rfind(':');
@@ -184,6 +186,11 @@ void addFitCommand(CLI::App& app) {
                      "paths recorded per round in pixels that see a fitted material directly "
                      "(default: --spp)")
         ->check(CLI::Range(1, 4096));
+    scene
+        ->add_option("--time-budget", a->timeBudget,
+                     "seconds the fit may take, recording included: no round starts that would "
+                     "end past it (the first always runs); the report then says not converged")
+        ->check(CLI::NonNegativeNumber);
     scene
         ->add_option("--adaptive-spp", a->adaptiveSpp,
                      "after the first round, this many more paths per pixel that sees a fitted "

@@ -9,17 +9,30 @@
 
 namespace phongfit {
 
+namespace {
+
+std::string notConvergedBecause(const FitResult& result) {
+    if (result.stopReason == "time budget") return "the time budget was spent";
+    if (result.stopReason == "interrupted") return "interrupted";
+    const std::size_t rounds = result.rounds.size();
+    return fmt::format("{} round{} spent and the last still moved", rounds, rounds == 1 ? "" : "s");
+}
+
+}  // namespace
+
 void printRound(const FitRound& r, const SceneFitProblem& problem, bool fitExposure) {
     std::string params;
     for (std::size_t s = 0; s < r.materials.size(); ++s)
-        params += fmt::format("  {}: kd {:.4g} ks {:.4g} n {:.4g}", problem.materials[s],
-                              r.materials[s].kd.mean(), r.materials[s].ks.mean(), r.materials[s].n);
+        params += fmt::format(
+            "  {}: kd {:.4g} ± {:.2g} ks {:.4g} ± {:.2g} n {:.4g} ± {:.2g}", problem.materials[s],
+            r.materials[s].kd.mean(), r.materials[s].kdStd.maxCoeff(), r.materials[s].ks.mean(),
+            r.materials[s].ksStd.maxCoeff(), r.materials[s].n, r.materials[s].nStd);
     if (fitExposure) params += fmt::format("  exposure {:.4g}", r.exposure.value);
     fmt::print(stderr,
-               "round {}: rmse {:.5g}, {} iterations of {:.3f} s, {:.2f} s, paths {:.1f} MB, "
-               "peak {:.0f} MB{}\n",
+               "round {}: rmse {:.5g}, {} iterations of {:.3f} s, {:.2f} s, {:.3g} paths "
+               "({:.1f} MB), peak {:.0f} MB{}\n",
                r.round + 1, r.rmse, r.iterations, r.secondsPerIteration, r.timeSeconds,
-               r.recordedBytes / 1e6, r.peakMemoryBytes / 1e6, params);
+               double(r.paths), r.recordedBytes / 1e6, r.peakMemoryBytes / 1e6, params);
 }
 
 void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,
@@ -41,8 +54,10 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
                        : "");
     fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
                result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
-               result.converged ? " (converged)" : " (not converged)", result.timeSeconds,
-               problem.views[0].depthNote, (std::filesystem::path(dir) / "fit.json").string());
+               result.converged ? " (converged)"
+                                : fmt::format(" (not converged: {})", notConvergedBecause(result)),
+               result.timeSeconds, problem.views[0].depthNote,
+               (std::filesystem::path(dir) / "fit.json").string());
 }
 
 }  // namespace phongfit

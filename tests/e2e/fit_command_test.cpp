@@ -71,7 +71,10 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
         const auto recorded = round["recorded_bytes"].get<std::size_t>();
         EXPECT_GE(recorded, 2u * kSize * kSize * (3 * sizeof(float) + sizeof(std::uint32_t)));
         EXPECT_GT(round["peak_memory_bytes"].get<std::size_t>(), recorded);
+        // Two sets of 4 paths per pixel.
+        EXPECT_EQ(round["paths"].get<std::size_t>(), 2u * 4 * kSize * kSize);
     }
+    EXPECT_EQ(report["stop_reason"], report["converged"].get<bool>() ? "converged" : "rounds");
     EXPECT_FALSE(report.contains("exposure")) << "only with --fit-exposure";
     EXPECT_EQ(report["views"][0]["max_depth"], 2);
     EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1)
@@ -84,6 +87,31 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
     const cv::Mat compare = cv::imread(path("out/compare.png"));
     EXPECT_EQ(compare.cols, 3 * kSize);
     EXPECT_EQ(compare.rows, kSize);
+}
+
+// --time-budget: no round starts past it, the first always runs, and the report says so. A 1e-9 s
+// budget is spent before the first round ends; the round's solve stops there.
+TEST_F(FitCommand, TimeBudgetStopsTheRoundsAndSaysSo) {
+    const auto r =
+        run({"fit", "--view", kSphere + ":" + path("sphere.exr"), "--material", "sphere", "--n",
+             "300", "--kd", "0.3", "--time-budget", "1e-9", "-o", path("budget"), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("(not converged: the time budget was spent)"), std::string::npos) << r.out;
+    const auto report = nlohmann::json::parse(std::ifstream(path("budget/fit.json")));
+    EXPECT_EQ(report["stop_reason"], "time budget");
+    EXPECT_FALSE(report["converged"].get<bool>());
+    EXPECT_FALSE(report["interrupted"].get<bool>());
+    EXPECT_EQ(report["rounds"].size(), 1u);
+
+    // One round allowed and not enough: the report names the rounds, not the budget.
+    const auto once =
+        run({"fit", "--view", kSphere + ":" + path("sphere.exr"), "--material", "sphere", "--n",
+             "300", "--kd", "0.3", "--rounds", "1", "-o", path("once"), "--quiet"});
+    ASSERT_EQ(once.exitCode, 0) << once.err;
+    EXPECT_NE(once.out.find("(not converged: 1 round spent and the last still moved)"),
+              std::string::npos)
+        << once.out;
+    EXPECT_EQ(nlohmann::json::parse(std::ifstream(path("once/fit.json")))["stop_reason"], "rounds");
 }
 
 void writeExrWithNan(const std::string& file) {
