@@ -100,7 +100,7 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
     in.kd = o.startKd;
     in.ks = o.startKs;
     in.n = o.startN;
-    const SceneRecording recording{spp, 0, 0, o.threads};
+    const SceneRecording recording{spp, 0, 0, o.threads, o.adaptiveSpp};
     FitOptions options;
     options.maxRounds = o.rounds;
     options.grey = s.grey;

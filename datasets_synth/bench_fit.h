@@ -18,6 +18,7 @@ struct BenchFitOptions {
     Color3 startKd = Color3::Constant(0.25), startKs = Color3::Constant(0.25);
     double startN = 100;
     int rounds = 6;
+    int adaptiveSpp = 0;  // SceneRecording::adaptiveSpp (fit --adaptive-spp)
     // A fit fails when it throws, returns a non-finite value, or misses a parameter by more than
     // this relative error.
     double failThreshold = 0.5;

@@ -1,9 +1,16 @@
 #include "holding.h"
 
+#include <cmath>
+
 #include "identifiability.h"
 #include "standard_errors.h"
 
 namespace phongfit {
+
+namespace {
+// How near log n must be to log kMinExponent to count as at the bound (n within 0.1% of it).
+constexpr double kAtLowerBound = 1e-3;
+}  // namespace
 
 template <int P>
 bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
@@ -25,6 +32,12 @@ bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params) {
         const HeldParams& held = params.held(s);
         if (held.n) continue;
         const Eigen::Matrix<double, P, 1> y = params.natural(s);
+        // At its lower bound the lobe has no shape left (cos^n alpha = 1 wherever it is lit):
+        // a second diffuse term, not a lobe the images show, whatever ks's significance.
+        if (y[L::kLogN] <= std::log(kMinExponent) + kAtLowerBound) {
+            indices.push_back(s * P + L::kLogN);
+            continue;
+        }
         std::vector<double> ks, ksStd;
         for (int g = 0; g < L::kGroups; ++g) {
             if (held.ks[g]) continue;

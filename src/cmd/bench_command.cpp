@@ -55,6 +55,10 @@ void addBenchCommand(CLI::App& app) {
     fit->add_option("--rounds", f->rounds, "at most this many rounds per fit")
         ->check(CLI::Range(1, 100))
         ->capture_default_str();
+    fit->add_option("--adaptive-spp", f->adaptiveSpp,
+                    "extra paths per pixel after the first round, as fit --adaptive-spp")
+        ->check(CLI::Range(0, 4096))
+        ->capture_default_str();
     fit->add_option("--fail-threshold", f->failThreshold,
                     "a fit with a relative error above this fails")
         ->capture_default_str();
