@@ -57,8 +57,18 @@ done
 failed=()
 for target in "${targets[@]}"; do
   if wait "${pids[$target]}"; then
-    runs=$(grep -m1 -o 'stat::number_of_executed_units: *[0-9]*' "$logs/$target.log" | grep -o '[0-9]*$')
-    echo "fuzz: $target: ${runs:-?} inputs in ${seconds} s, no finding"
+    # One run states its inputs in its final stats; -fork=1 runs in their last status line
+    # ("#N: cov: ... oom/timeout/crash: O/T/C"), with what they went on past.
+    log=$logs/$target.log
+    runs=$(grep -m1 -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' ||
+           grep -o '^#[0-9]*' "$log" | tail -n 1 | tr -d '#' || true)
+    kept=$(grep -o 'oom/timeout/crash: [0-9/]*' "$log" | tail -n 1 | cut -d' ' -f2 || true)
+    if [[ -n $kept && $kept != 0/0/0 ]]; then
+      echo "fuzz: $target: ${runs:-?} inputs in ${seconds} s, went on past oom/timeout/crash" \
+        "$kept: inputs in $build/artifacts/$target-*"
+    else
+      echo "fuzz: $target: ${runs:-?} inputs in ${seconds} s, no finding"
+    fi
   else
     failed+=("$target")
     echo "fuzz: $target FAILED; end of $logs/$target.log:" >&2
