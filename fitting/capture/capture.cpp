@@ -176,15 +176,30 @@ Capture readCapture(const std::string& dir, const CaptureReadOptions& options) {
     c.width = normals.width;
     c.height = normals.height;
     const std::vector<std::uint8_t> mask = readMask(c.maskPath, c.width, c.height);
+    std::size_t inMask = 0;
+    std::string firstBad;
     for (std::size_t p = 0; p < mask.size(); ++p) {
         if (!mask[p]) continue;
+        ++inMask;
         const Vec3d n(normals.rgb[3 * p], normals.rgb[3 * p + 1], normals.rgb[3 * p + 2]);
+        const double length = n.norm();
+        if (!(std::abs(length - 1) <= kUnitTolerance)) {
+            if (c.badNormals++ == 0)
+                firstBad = fmt::format(
+                    "the first at pixel ({}, {}): ({:.6g}, {:.6g}, {:.6g}) has "
+                    "length {:.6g}",
+                    p % c.width, p / c.width, n.x(), n.y(), n.z(), length);
+            continue;
+        }
         c.pixels.push_back(std::uint32_t(p));
-        c.normals.push_back(
-            unit(n, fmt::format("normals '{}': the normal at pixel ({}, {}) inside "
-                                "the mask '{}'",
-                                c.normalsPath, p % c.width, p / c.width, c.maskPath)));
+        c.normals.push_back(n / length);
     }
+    if (double(c.badNormals) > kMaxBadNormalFraction * double(inMask))
+        throw Error(fmt::format(
+            "normals '{}': {} of the {} pixels inside the mask '{}' have no unit normal (within "
+            "{:g}); {}. Above {:g}% the normals or the mask do not belong to this capture",
+            c.normalsPath, c.badNormals, inMask, c.maskPath, kUnitTolerance, firstBad,
+            100 * kMaxBadNormalFraction));
     if (c.pixels.empty())
         throw Error(
             fmt::format("mask '{}' selects no pixel (nonzero pixels are fitted)", c.maskPath));

@@ -42,7 +42,10 @@ struct Capture {
     int width = 0, height = 0;
     std::vector<std::uint32_t> pixels;  // y * width + x of each mask pixel, in row order
     std::vector<Vec3d> normals;         // per mask pixel, unit, camera frame
-    std::vector<CaptureLight> lights;   // every light of the folder, in order
+    // Mask pixels left out because their normal is zero, not unit or not finite (real data has
+    // such pixels: DiLiGenT's pot2 has 73 zero normals inside its mask).
+    std::size_t badNormals = 0;
+    std::vector<CaptureLight> lights;  // every light of the folder, in order
 };
 
 struct CaptureReadOptions {
@@ -62,11 +65,16 @@ struct CaptureImage {
     std::vector<PixelState> state;  // per mask pixel
 };
 
-// Reads and checks the text files, the mask and the normals (not the photographs). Throws Error
-// naming the file for: a missing folder or file, a line that is not three numbers, counts that
-// disagree between the three text files, a light direction or normal (inside the mask) that is not
-// unit within kUnitTolerance, an intensity that is not > 0, and a mask of the wrong size or that
-// selects no pixel.
+// More than this fraction of the mask's pixels with a bad normal means the normals (or the mask) do
+// not belong to the capture: an error rather than pixels left out.
+inline constexpr double kMaxBadNormalFraction = 0.05;
+
+// Reads and checks the text files, the mask and the normals (not the photographs). A mask pixel
+// whose normal is not unit within kUnitTolerance is left out and counted (Capture::badNormals).
+// Throws Error naming the file for: a missing folder or file, a line that is not three numbers,
+// counts that disagree between the three text files, a light direction that is not unit, an
+// intensity that is not > 0, bad normals in more than kMaxBadNormalFraction of the mask (naming
+// the first), and a mask of the wrong size or that selects no pixel.
 Capture readCapture(const std::string& dir, const CaptureReadOptions& options = {});
 
 // Reads the photographs of `lights` (indices into capture.lights), in parallel on `threads` threads

@@ -174,10 +174,12 @@ void writeCaptureFit(const CaptureRun& run, const CaptureFitInputs& inputs, cons
         "indirect light and interreflection: one bounce (depth 1; Mitsuba maxDepth 2)",
         "cast shadows: the surface is assumed unoccluded; pairs with n.l below min_cos are left "
         "out instead",
-        "clipped and non-finite pixels"};
+        "clipped and non-finite pixels",
+        "mask pixels whose normal is zero, not unit or not finite (pixels.bad_normals)"};
     report["start"] = {{"kd", rgb(fit.start.kd)}, {"ks", rgb(fit.start.ks)}, {"n", fit.start.n}};
     report["pairs"] = {
         {"total", fit.model.pairs}, {"used", fit.model.used}, {"left_out", fit.model.leftOut}};
+    report["pixels"] = {{"used", capture.pixels.size()}, {"bad_normals", capture.badNormals}};
     // The Lambertian-only fit, reported as the Phong fit is (its ks and n are unconstrained).
     report["lambertian"] =
         fit.lambertian ? toJson(*fit.lambertian, {"capture"}) : nlohmann::json(nullptr);

@@ -63,6 +63,22 @@ TEST_F(CaptureCommand, WritesReportAndComparison) {
     EXPECT_LE(compare.cols, 3 * Synthetic::kSize);
 }
 
+// DiLiGenT's pot2 (the public 8-bit linear crop) has 73 zero normals inside its mask: they are
+// left out and counted, and the rest is fitted.
+TEST_F(CaptureCommand, RealCaptureWithZeroNormalsIsFittedWithThemCounted) {
+    const auto r = run({"fit", "--capture", PHONGFIT_POT2_DIR, "--linear", "--lights", "1-8",
+                        "--threads", "2", "-o", out("pot2"), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("left out 73 pixels of the mask whose normal is zero, not unit or not "
+                         "finite"),
+              std::string::npos)
+        << r.out;
+    const auto report = nlohmann::json::parse(std::ifstream(out("pot2/fit.json")));
+    EXPECT_EQ(report["pixels"]["bad_normals"], 73);
+    EXPECT_EQ(report["pixels"]["used"], report["capture"]["mask_pixels"]);
+    EXPECT_GT(report["pixels"]["used"].get<int>(), 10000);
+}
+
 TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
     cv::imwrite(out("012.png"),
                 cv::Mat(Synthetic::kSize, Synthetic::kSize, CV_16UC3, cv::Scalar(0, 0, 0)));
