@@ -40,6 +40,7 @@ Image readExr(const std::string& path) {
         Imf::InputFile file(path.c_str());
         const Imath::Box2i window = file.header().dataWindow();
         Image image(window.max.x - window.min.x + 1, window.max.y - window.min.y + 1);
+        image.decoding = "EXR, linear";
         const Imf::ChannelList& channels = file.header().channels();
         const char* names[3] = {"R", "G", "B"};
         int rgbCount = 0;
@@ -76,9 +77,27 @@ Image readExr(const std::string& path) {
 }
 
 // Lookup table from the integer value to linear, for formats with `levels` values.
+Encoding resolvedEncoding(int levels, const ReadOptions& options) {
+    if (options.encoding != Encoding::Auto) return options.encoding;
+    return levels <= 256 ? Encoding::Srgb : Encoding::Linear;
+}
+
+std::string describeDecoding(int levels, const ReadOptions& options) {
+    const int bits = levels <= 256 ? 8 : 16;
+    const std::string chosen =
+        options.encoding == Encoding::Auto ? fmt::format(" (the default for {}-bit)", bits) : "";
+    switch (resolvedEncoding(levels, options)) {
+        case Encoding::Srgb:
+            return fmt::format("{}-bit, decoded with the sRGB curve{}", bits, chosen);
+        case Encoding::Gamma:
+            return fmt::format("{}-bit, decoded as value^{:g}", bits, options.gamma);
+        default:
+            return fmt::format("{}-bit, read as linear{}", bits, chosen);
+    }
+}
+
 std::vector<float> decodingTable(int levels, const ReadOptions& options, const std::string& path) {
-    Encoding encoding = options.encoding;
-    if (encoding == Encoding::Auto) encoding = levels <= 256 ? Encoding::Srgb : Encoding::Linear;
+    const Encoding encoding = resolvedEncoding(levels, options);
     if (encoding == Encoding::Gamma && !(std::isfinite(options.gamma) && options.gamma > 0))
         throw Error(fmt::format("reading '{}': gamma = {} is invalid (allowed: finite, > 0)", path,
                                 options.gamma));
@@ -152,12 +171,15 @@ Image readLdr(const std::string& path, const ReadOptions& options) {
     switch (mat.depth()) {
         case CV_8U:
             decodeIntegerPixels<std::uint8_t>(mat, decodingTable(256, options, path), image);
+            image.decoding = describeDecoding(256, options);
             break;
         case CV_16U:
             decodeIntegerPixels<std::uint16_t>(mat, decodingTable(65536, options, path), image);
+            image.decoding = describeDecoding(65536, options);
             break;
         case CV_32F:
             decodeFloatPixels(mat, image);
+            image.decoding = "32-bit float, linear";
             break;
         default:
             throw Error(

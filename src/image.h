@@ -19,6 +19,9 @@ struct Image {
     std::vector<float> rgb;  // 3 floats per pixel, row-major, row 0 = top
     // Per pixel: 1 if any channel was at the LDR format's maximum (the true value may be higher).
     std::vector<std::uint8_t> clipped;
+    // How the file's values became linear, in words, e.g. "8-bit, decoded with the sRGB curve (the
+    // default for 8-bit)": what a user must know to tell a linear capture decoded as sRGB.
+    std::string decoding = "linear";
 
     Image() = default;
     // Black, nothing clipped.

@@ -82,6 +82,7 @@ TEST_F(ImageTest, ExrRoundTripIsBitExact) {
     EXPECT_EQ(back.clipped, std::vector<std::uint8_t>(35, 0));
     // Row 0 is the top and x runs along a row.
     EXPECT_EQ(back.at(6, 4)[2], image.rgb[3 * 34 + 2]);
+    EXPECT_EQ(back.decoding, "EXR, linear");
 }
 
 TEST_F(ImageTest, ExrMissingChannelIsAnErrorNamingFileAndChannels) {
@@ -116,6 +117,7 @@ TEST_F(ImageTest, Png8BitIsDecodedWithTheSrgbCurveInRgbOrder) {
             EXPECT_NEAR(c[2], srgbFormula((10 + 40 * x) / 255.0), 1e-6);
         }
     }
+    EXPECT_EQ(image.decoding, "8-bit, decoded with the sRGB curve (the default for 8-bit)");
 }
 
 TEST_F(ImageTest, Png8BitWithGivenGammaOrLinear) {
@@ -128,6 +130,11 @@ TEST_F(ImageTest, Png8BitWithGivenGammaOrLinear) {
     const Image linear = readImage(path("g.png"), {Encoding::Linear});
     EXPECT_NEAR(linear.at(0, 0)[0], 51 / 255.0, 1e-7);
     EXPECT_NEAR(linear.at(0, 0)[2], 51 / 255.0, 1e-7);  // grey fills all channels
+    // What was chosen is said, so a linear capture decoded as sRGB can be told.
+    EXPECT_EQ(gamma.decoding, "8-bit, decoded as value^2.2");
+    EXPECT_EQ(linear.decoding, "8-bit, read as linear");
+    EXPECT_EQ(readImage(path("g.png"), {Encoding::Srgb}).decoding,
+              "8-bit, decoded with the sRGB curve");
 }
 
 TEST_F(ImageTest, Png16BitIsLinearByDefaultAndFlagsClipping) {
@@ -141,6 +148,7 @@ TEST_F(ImageTest, Png16BitIsLinearByDefaultAndFlagsClipping) {
     EXPECT_NEAR(image.at(0, 0)[1], 20000 / 65535.0, 1e-7);
     EXPECT_NEAR(image.at(0, 0)[2], 1000 / 65535.0, 1e-7);
     EXPECT_EQ(image.clipped, (std::vector<std::uint8_t>{0, 1, 0}));
+    EXPECT_EQ(image.decoding, "16-bit, read as linear (the default for 16-bit)");
 }
 
 TEST_F(ImageTest, Png8BitClippedWhereAnyChannelIs255) {

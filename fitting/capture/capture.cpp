@@ -107,6 +107,7 @@ CaptureImage readOne(const Capture& capture, int light, const CaptureReadOptions
                                 capture.height));
     CaptureImage out;
     out.light = light;
+    out.decoding = image.decoding;
     out.rgb.resize(capture.pixels.size());
     out.state.resize(capture.pixels.size());
     const Color<float> intensity = l.intensity.cast<float>();

@@ -63,6 +63,7 @@ struct CaptureImage {
     int light = 0;                  // index into Capture::lights
     std::vector<Color<float>> rgb;  // per mask pixel, divided by the light's intensity
     std::vector<PixelState> state;  // per mask pixel
+    std::string decoding;           // Image::decoding of the photograph
 };
 
 // More than this fraction of the mask's pixels with a bad normal means the normals (or the mask) do

@@ -179,6 +179,7 @@ void writeCaptureFit(const CaptureRun& run, const CaptureFitInputs& inputs, cons
     report["start"] = {{"kd", rgb(fit.start.kd)}, {"ks", rgb(fit.start.ks)}, {"n", fit.start.n}};
     report["pairs"] = {
         {"total", fit.model.pairs}, {"used", fit.model.used}, {"left_out", fit.model.leftOut}};
+    report["decoding"] = run.images.front().decoding;
     report["pixels"] = {{"used", capture.pixels.size()}, {"bad_normals", capture.badNormals}};
     // The Lambertian-only fit, reported as the Phong fit is (its ks and n are unconstrained).
     report["lambertian"] =

@@ -128,6 +128,7 @@ void runCaptureFitCommand(const FitCli& a) {
         fit.model.used, run.lights.size(), fit.phong.rmse, fit.model.pairs - fit.model.used,
         fit.model.leftOut.at("below_min_cos"), fit.model.leftOut.at("clipped"),
         fit.model.leftOut.at("non_finite"), fit.model.leftOut.at("facing_away"));
+    fmt::print("photographs: {}\n", run.images.front().decoding);
     if (run.capture.badNormals > 0)
         fmt::print("left out {} pixel{} of the mask whose normal is zero, not unit or not finite\n",
                    run.capture.badNormals, run.capture.badNormals == 1 ? "" : "s");

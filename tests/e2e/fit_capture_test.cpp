@@ -73,7 +73,9 @@ TEST_F(CaptureCommand, RealCaptureWithZeroNormalsIsFittedWithThemCounted) {
                          "finite"),
               std::string::npos)
         << r.out;
+    EXPECT_NE(r.out.find("photographs: 8-bit, read as linear\n"), std::string::npos) << r.out;
     const auto report = nlohmann::json::parse(std::ifstream(out("pot2/fit.json")));
+    EXPECT_EQ(report["decoding"], "8-bit, read as linear");
     EXPECT_EQ(report["pixels"]["bad_normals"], 73);
     EXPECT_EQ(report["pixels"]["used"], report["capture"]["mask_pixels"]);
     EXPECT_GT(report["pixels"]["used"].get<int>(), 10000);
