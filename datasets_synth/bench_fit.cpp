@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -41,6 +42,16 @@ Errors errorsOf(const MaterialFit& m, const PhongMaterial& truth) {
     return {colourError(m.kd, truth.kd), colourError(m.ks, truth.ks), exponentError(m.n, truth.n)};
 }
 
+// The reported standard errors relative to the truth, as errorsOf measures the errors: what the
+// fit says its error is, to set beside what it is.
+Errors relativeStdOf(const MaterialFit& m, const PhongMaterial& truth) {
+    const auto relative = [](const Color3& sd, const Color3& t) {
+        return sd.matrix().norm() / std::max(t.matrix().norm(), 1e-12);
+    };
+    return {relative(m.kdStd, truth.kd), relative(m.ksStd, truth.ks),
+            m.nStd / std::max(truth.n, 1e-12)};
+}
+
 // Whether every parameter the fit did not hold lies within 3 of its standard errors of the truth
 // (kd and ks per channel): whether the uncertainty the tool reports covers its error.
 bool withinErrors(const MaterialFit& m, const PhongMaterial& truth) {
@@ -62,6 +73,7 @@ bool withinErrors(const MaterialFit& m, const PhongMaterial& truth) {
 struct RoundPoint {
     double seconds = 0;  // cumulative, over the rounds so far
     Errors errors;
+    Errors stds;  // reported standard errors, relative (relativeStdOf)
 };
 
 struct FitRow {
@@ -126,7 +138,8 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
         double cumulative = 0;
         for (const FitRound& round : r.rounds) {
             cumulative += round.timeSeconds;
-            row.history.push_back({cumulative, errorsOf(round.materials.at(0), s.truth)});
+            row.history.push_back({cumulative, errorsOf(round.materials.at(0), s.truth),
+                                   relativeStdOf(round.materials.at(0), s.truth)});
         }
         if (!finite(row.fit)) {
             row.failed = true;
@@ -188,13 +201,17 @@ std::string recoveryCsv(const std::vector<FitRow>& rows) {
 }
 
 std::string roundsCsv(const std::vector<FitRow>& rows) {
-    std::string csv = "sample,group,spp_per_round,round,time_s,kd_rel_err,ks_rel_err,n_rel_err\n";
+    std::string csv =
+        "sample,group,spp_per_round,round,time_s,kd_rel_err,ks_rel_err,n_rel_err,kd_rel_std,"
+        "ks_rel_std,n_rel_std\n";
     for (const FitRow& r : rows)
-        for (std::size_t k = 0; k < r.history.size(); ++k)
+        for (std::size_t k = 0; k < r.history.size(); ++k) {
+            const RoundPoint& p = r.history[k];
             csv +=
-                fmt::format("{},{},{},{},{:.4g},{:.6g},{:.6g},{:.6g}\n", r.sample->name,
-                            r.sample->group, r.spp, k + 1, r.history[k].seconds,
-                            r.history[k].errors.kd, r.history[k].errors.ks, r.history[k].errors.n);
+                fmt::format("{},{},{},{},{:.4g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n",
+                            r.sample->name, r.sample->group, r.spp, k + 1, p.seconds, p.errors.kd,
+                            p.errors.ks, p.errors.n, p.stds.kd, p.stds.ks, p.stds.n);
+        }
     return csv;
 }
 
@@ -335,41 +352,56 @@ cv::Mat recoveryPlot(const std::vector<FitRow>& rows, const std::vector<int>& sp
     return drawFigure("recovered against true parameters", {kd, ks, n}, 440, 420);
 }
 
-// The median error after each round against the median time spent up to it; a fit that stopped
-// earlier keeps its last estimate and time.
+// The median error after each round (solid) and the median reported standard error (dashed)
+// against the median time spent up to it; a fit that stopped earlier keeps its last estimate and
+// time.
 cv::Mat errorVsTimePlot(const std::vector<FitRow>& rows, const std::vector<int>& spps) {
     const std::string x = "fit time [s]";
-    PlotPanel kd{"kd", {x, true}, {"median relative error", true}, {}, false};
-    PlotPanel ks{"ks", {x, true}, {"median relative error", true}, {}, false};
-    PlotPanel n{"n", {x, true}, {"median relative error", true}, {}, false};
+    PlotPanel kd{"kd", {x, true}, {"median relative error (dashed: std)", true}, {}, false};
+    PlotPanel ks{"ks", {x, true}, {"median relative error (dashed: std)", true}, {}, false};
+    PlotPanel n{"n", {x, true}, {"median relative error (dashed: std)", true}, {}, false};
+    PlotPanel* panels[3] = {&kd, &ks, &n};
+    const auto component = [](const Errors& e, int k) {
+        return k == 0 ? e.kd : k == 1 ? e.ks : e.n;
+    };
     std::size_t maxRounds = 0;
     for (const FitRow& r : rows) maxRounds = std::max(maxRounds, r.history.size());
     for (std::size_t i = 0; i < spps.size(); ++i) {
-        PlotSeries a{
+        const PlotSeries line{
             fmt::format("{} spp/round", spps[i]), plotColor(int(i)), false, true, true, {}};
-        PlotSeries b = a, c = a;
+        std::array<PlotSeries, 3> errors = {line, line, line};
+        PlotSeries dashed = line;
+        dashed.label = fmt::format("{} spp/round: reported std", spps[i]);
+        dashed.dashed = true;
+        std::array<PlotSeries, 3> stds = {dashed, dashed, dashed};
         for (std::size_t k = 0; k < maxRounds; ++k) {
-            std::vector<double> t, ekd, eks, en;
+            std::vector<double> t;
+            std::array<std::vector<double>, 3> e, sd;
             for (const FitRow& r : rows) {
                 if (r.spp != spps[i] || r.history.empty()) continue;
                 const RoundPoint& p = r.history[std::min(k, r.history.size() - 1)];
                 t.push_back(p.seconds);
-                ekd.push_back(p.errors.kd);
-                eks.push_back(p.errors.ks);
-                en.push_back(p.errors.n);
+                for (int c = 0; c < 3; ++c) {
+                    e[c].push_back(component(p.errors, c));
+                    sd[c].push_back(component(p.stds, c));
+                }
             }
             if (t.empty()) continue;
             const double time = quantile(t, 0.5);
-            a.points.emplace_back(time, std::max(quantile(ekd, 0.5), 1e-6));
-            b.points.emplace_back(time, std::max(quantile(eks, 0.5), 1e-6));
-            c.points.emplace_back(time, std::max(quantile(en, 0.5), 1e-6));
+            for (int c = 0; c < 3; ++c) {
+                errors[c].points.emplace_back(time, std::max(quantile(e[c], 0.5), 1e-6));
+                stds[c].points.emplace_back(time, std::max(quantile(sd[c], 0.5), 1e-6));
+            }
         }
-        kd.series.push_back(a);
-        ks.series.push_back(b);
-        n.series.push_back(c);
+        for (int c = 0; c < 3; ++c) {
+            panels[c]->series.push_back(errors[c]);
+            panels[c]->series.push_back(stds[c]);
+        }
     }
-    return drawFigure("parameter error against fit time (one point per round)", {kd, ks, n}, 440,
-                      400);
+    return drawFigure(
+        "parameter error and reported standard error against fit time (one point "
+        "per round)",
+        {kd, ks, n}, 440, 400);
 }
 
 }  // namespace

@@ -159,9 +159,16 @@ TEST_F(Bench, FitRecoversTheSmallDatasetAndSummarizes) {
             1);
     }
     std::string roundsHeader;
-    EXPECT_FALSE(readCsv(path("fit/rounds.csv"), roundsHeader).empty());
+    const auto roundRows = readCsv(path("fit/rounds.csv"), roundsHeader);
+    EXPECT_FALSE(roundRows.empty());
+    // The columns users' scripts read stay first; the reported standard errors follow.
     EXPECT_EQ(roundsHeader,
-              "sample,group,spp_per_round,round,time_s,kd_rel_err,ks_rel_err,n_rel_err");
+              "sample,group,spp_per_round,round,time_s,kd_rel_err,ks_rel_err,n_rel_err,"
+              "kd_rel_std,ks_rel_std,n_rel_std");
+    for (const auto& row : roundRows) {
+        ASSERT_EQ(row.size(), 11u);
+        for (std::size_t c = 8; c < 11; ++c) EXPECT_GE(std::stod(row[c]), 0) << row[c];
+    }
     expectPlot(path("fit/recovered_vs_true.png"));
     expectPlot(path("fit/error_vs_time_fit.png"));
     expectMachineInfo(path("fit/machine.json"));
