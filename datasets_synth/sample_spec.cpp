@@ -59,20 +59,29 @@ SampleSpec drawSample(const SynthConfig& config, int index) {
     while (index - first >= config.groups[s.group].samples)
         first += config.groups[s.group++].samples;
     const GroupConfig& g = config.groups[s.group];
-    s.scene = (index - first) % int(g.scenes.size());
+    const int local = index - first;
+    s.scene = g.grid ? local / g.grid->cells() : local % int(g.scenes.size());
 
     const CounterRng rng(config.seed, std::uint64_t(index));
     auto u = [&](std::uint32_t dimension) { return rng.uniform(0, dimension); };
     // Total and split rather than kd and ks on their own: kd + ks <= albedo <= 1 by construction,
     // and the ranges say directly how bright and how glossy the samples are.
-    const double albedo = uniformIn(g.albedo, u(kAlbedo));
-    const double share = uniformIn(g.ksShare, u(kKsShare));
-    for (int c = 0; c < 3; ++c) {
-        s.material.kd[c] =
-            albedo * (1 - share) * (g.colour ? uniformIn(g.tint, u(kKdTint + c)) : 1);
-        s.material.ks[c] = albedo * share * (g.colour ? uniformIn(g.tint, u(kKsTint + c)) : 1);
+    if (g.grid) {
+        const int cell = local % g.grid->cells();
+        const GridSpec::Material& m = g.grid->materials[cell % g.grid->materials.size()];
+        s.material.kd = m.kd;
+        s.material.ks = m.ks;
+        s.material.n = g.grid->n[cell / g.grid->materials.size()];
+    } else {
+        const double albedo = uniformIn(g.albedo, u(kAlbedo));
+        const double share = uniformIn(g.ksShare, u(kKsShare));
+        for (int c = 0; c < 3; ++c) {
+            s.material.kd[c] =
+                albedo * (1 - share) * (g.colour ? uniformIn(g.tint, u(kKdTint + c)) : 1);
+            s.material.ks[c] = albedo * share * (g.colour ? uniformIn(g.tint, u(kKsTint + c)) : 1);
+        }
+        s.material.n = logUniformIn(g.n, u(kExponent));
     }
-    s.material.n = logUniformIn(g.n, u(kExponent));
     s.defines["kd"] = colorText(s.material.kd);
     s.defines["ks"] = colorText(s.material.ks);
     s.defines["n"] = text(s.material.n);

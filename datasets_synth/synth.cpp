@@ -133,7 +133,10 @@ bool makeSample(const SynthConfig& config, const SampleSpec& s, const fs::path& 
         {"kd", toJson(truth.kd)},
         {"ks", toJson(truth.ks)},
         {"n", truth.n},
-        {"grey", !g.colour},
+        // Drawn grey, or a grid material grey in kd and ks: the fit ties the channels.
+        {"grey", g.grid ? truth.kd.maxCoeff() == truth.kd.minCoeff() &&
+                              truth.ks.maxCoeff() == truth.ks.minCoeff()
+                        : !g.colour},
         {"defines", defines},
         {"spp", g.spp},
         {"seed", s.renderSeed},

@@ -20,8 +20,11 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 // Keys a group may set; at the top level they are the defaults of every group.
-const std::vector<std::string> kGroupKeys = {"scenes", "material", "spp",  "albedo", "ks_share",
-                                             "n",      "colour",   "tint", "light",  "defines"};
+const std::vector<std::string> kGroupKeys = {"scenes",   "material", "spp",    "albedo",
+                                             "ks_share", "n",        "colour", "tint",
+                                             "light",    "defines",  "grid"};
+// Keys whose values a grid sets instead.
+const std::vector<std::string> kDrawnKeys = {"albedo", "ks_share", "n", "colour", "tint"};
 // Defaults that synth itself sets: a config cannot set them through "defines".
 const std::map<std::string, std::string> kOwnDefines = {{"kd", "albedo, ks_share, colour and tint"},
                                                         {"ks", "albedo, ks_share, colour and tint"},
@@ -97,6 +100,19 @@ public:
         return r;
     }
 
+    // A grey number or [r, g, b], each in [0, 1].
+    Color3 colour(const std::string& key, const json& v) const {
+        if (v.is_number()) {
+            const double x = v.get<double>();
+            if (x >= 0 && x <= 1) return Color3::Constant(x);
+        } else if (v.is_array() && v.size() == 3 && v[0].is_number() && v[1].is_number() &&
+                   v[2].is_number()) {
+            const Color3 c(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+            if ((c.array() >= 0).all() && (c.array() <= 1).all()) return c;
+        }
+        fail(key, v, "expected a number or [r, g, b], each in [0, 1]");
+    }
+
     const std::string& file() const { return file_; }
 
 private:
@@ -136,6 +152,60 @@ void checkScene(const Reader& reader, const std::string& key, const std::string&
                         key, g.material, path));
 }
 
+// {"n": [exponents], "materials": [{"kd": c, "ks": c}, ...]}, with kd + ks <= 1 per channel.
+GridSpec readGrid(const Reader& reader, const std::string& key, const json& v) {
+    if (!v.is_object()) reader.fail(key, v, "expected {\"n\": [...], \"materials\": [...]}");
+    reader.checkKeys(v, key + ".", {"n", "materials"});
+    for (const char* k : {"n", "materials"})
+        if (!v.contains(k)) reader.fail(fmt::format("missing key '{}.{}'", key, k));
+    GridSpec grid;
+    const json& n = v.at("n");
+    if (!n.is_array() || n.empty()) reader.fail(key + ".n", n, "expected a non-empty list");
+    for (std::size_t i = 0; i < n.size(); ++i) {
+        const std::string k = fmt::format("{}.n[{}]", key, i);
+        if (!n[i].is_number() || !(n[i].get<double>() >= 1e-3 && n[i].get<double>() <= 1e6))
+            reader.fail(k, n[i], "expected a number in [0.001, 1e6]");
+        grid.n.push_back(n[i].get<double>());
+    }
+    const json& materials = v.at("materials");
+    if (!materials.is_array() || materials.empty())
+        reader.fail(key + ".materials", materials, "expected a non-empty list");
+    for (std::size_t i = 0; i < materials.size(); ++i) {
+        const std::string k = fmt::format("{}.materials[{}]", key, i);
+        const json& m = materials[i];
+        if (!m.is_object()) reader.fail(k, m, "expected {\"kd\": ..., \"ks\": ...}");
+        reader.checkKeys(m, k + ".", {"kd", "ks"});
+        for (const char* c : {"kd", "ks"})
+            if (!m.contains(c)) reader.fail(fmt::format("missing key '{}.{}'", k, c));
+        const GridSpec::Material material{reader.colour(k + ".kd", m.at("kd")),
+                                          reader.colour(k + ".ks", m.at("ks"))};
+        if (((material.kd + material.ks).array() > 1).any())
+            reader.fail(k, m, "kd + ks must be at most 1 in every channel");
+        grid.materials.push_back(material);
+    }
+    if (grid.n.size() * grid.materials.size() > 1000000)
+        reader.fail(key, v, "more than 1000000 cells");
+    return grid;
+}
+
+// The ranges the material is drawn from.
+template <typename Key, typename Require>
+void readDrawn(const Reader& reader, const json& merged, const Key& key, const Require& require,
+               GroupConfig& g) {
+    g.albedo = reader.range(key("albedo"), require("albedo"), 0, 1);
+    g.ksShare = reader.range(key("ks_share"), require("ks_share"), 0, 1);
+    g.n = reader.range(key("n"), require("n"), 0, 1e6);
+    if (g.n.lo < g.n.hi && g.n.lo <= 0)
+        reader.fail(key("n"), merged.at("n"),
+                    "a range of n is drawn log-uniformly, so its lower end must be > 0");
+    if (merged.contains("colour")) g.colour = reader.boolean(key("colour"), merged.at("colour"));
+    g.tint = Range{0.25, 1, false};
+    if (merged.contains("tint")) {
+        if (!g.colour) reader.fail(key("tint"), merged.at("tint"), "a tint needs \"colour\": true");
+        g.tint = reader.range(key("tint"), merged.at("tint"), 0, 1);
+    }
+}
+
 GroupConfig readGroup(const Reader& reader, const json& merged,
                       const std::map<std::string, std::string>& prefixOf, const fs::path& baseDir) {
     auto key = [&](const std::string& k) { return prefixOf.at(k) + k; };
@@ -156,17 +226,13 @@ GroupConfig readGroup(const Reader& reader, const json& merged,
     }
     g.material = reader.string(key("material"), require("material"));
     g.spp = int(reader.integer(key("spp"), require("spp"), 1, 1 << 20));
-    g.albedo = reader.range(key("albedo"), require("albedo"), 0, 1);
-    g.ksShare = reader.range(key("ks_share"), require("ks_share"), 0, 1);
-    g.n = reader.range(key("n"), require("n"), 0, 1e6);
-    if (g.n.lo < g.n.hi && g.n.lo <= 0)
-        reader.fail(key("n"), merged.at("n"),
-                    "a range of n is drawn log-uniformly, so its lower end must be > 0");
-    if (merged.contains("colour")) g.colour = reader.boolean(key("colour"), merged.at("colour"));
-    g.tint = Range{0.25, 1, false};
-    if (merged.contains("tint")) {
-        if (!g.colour) reader.fail(key("tint"), merged.at("tint"), "a tint needs \"colour\": true");
-        g.tint = reader.range(key("tint"), merged.at("tint"), 0, 1);
+    if (merged.contains("grid")) {
+        g.grid = readGrid(reader, key("grid"), merged.at("grid"));
+        for (const std::string& k : kDrawnKeys)
+            if (merged.contains(k) && prefixOf.at(k) == prefixOf.at("grid"))
+                reader.fail(key(k), merged.at(k), "the \"grid\" beside it sets these values");
+    } else {
+        readDrawn(reader, merged, key, require, g);
     }
     if (merged.contains("light")) {
         const json& l = merged.at("light");
@@ -214,6 +280,25 @@ GroupConfig readGroup(const Reader& reader, const json& merged,
         checkScene(reader, fmt::format("{}[{}]", key("scenes"), i), g.scenes[i], g.scenePaths[i], g,
                    required);
     return g;
+}
+
+// "samples", or with a grid its cells for every scene (then "samples" is not given).
+int sampleCount(const Reader& reader, const GroupConfig& g, const json& object,
+                const std::string& prefix) {
+    if (g.grid) {
+        if (object.contains("samples"))
+            reader.fail(prefix + "samples", object.at("samples"),
+                        "with a \"grid\" the samples are its cells for every scene");
+        const std::int64_t count = std::int64_t(g.grid->cells()) * std::int64_t(g.scenes.size());
+        if (count > 1000000)
+            reader.fail(prefix + "grid", count, "more than 1000000 samples with its scenes");
+        return int(count);
+    }
+    if (!object.contains("samples"))
+        reader.fail(
+            fmt::format("missing key '{}samples'{}", prefix,
+                        prefix.empty() ? " (or \"groups\" or \"grid\")" : " (or \"grid\")"));
+    return int(reader.integer(prefix + "samples", object.at("samples"), 1, 1000000));
 }
 
 }  // namespace
@@ -299,8 +384,7 @@ SynthConfig loadSynthConfig(const std::string& path) {
             std::vector<std::string> keys = kGroupKeys;
             keys.insert(keys.end(), {"name", "samples", "description"});
             reader.checkKeys(group, prefix, keys);
-            for (const char* k : {"name", "samples"})
-                if (!group.contains(k)) reader.fail(fmt::format("missing key '{}{}'", prefix, k));
+            if (!group.contains("name")) reader.fail(fmt::format("missing key '{}name'", prefix));
             const std::string name = reader.string(prefix + "name", group.at("name"));
             if (!isIdentifier(name))
                 reader.fail(prefix + "name", group.at("name"),
@@ -313,15 +397,14 @@ SynthConfig loadSynthConfig(const std::string& path) {
             prefixOf["name"] = "groups[" + std::to_string(i) + "] ('" + name + "')";
             GroupConfig g = readGroup(reader, merged, prefixOf, baseDir);
             g.name = name;
-            g.samples = int(reader.integer(prefix + "samples", group.at("samples"), 1, 1000000));
+            g.samples = sampleCount(reader, g, group, prefix);
             config.groups.push_back(std::move(g));
         }
     } else {
-        if (!top.contains("samples")) reader.fail("missing key 'samples' (or \"groups\")");
         auto [merged, prefixOf] = mergeGroup(json::object(), "");
         GroupConfig g = readGroup(reader, merged, prefixOf, baseDir);
         g.name = "default";
-        g.samples = int(reader.integer("samples", top.at("samples"), 1, 1000000));
+        g.samples = sampleCount(reader, g, top, "");
         config.groups.push_back(std::move(g));
     }
     if (config.totalSamples() > 1000000)

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "math.h"
+
 namespace phongfit {
 
 // A number, or [lo, hi] to draw from (lo == hi for a fixed value).
@@ -30,6 +32,16 @@ struct LightSpec {
     Range phaseDeg, azimuthDeg, distance;
 };
 
+// Every listed exponent with every listed material, instead of drawn values: a matrix of cases.
+struct GridSpec {
+    struct Material {
+        Color3 kd, ks;
+    };
+    std::vector<double> n;
+    std::vector<Material> materials;
+    int cells() const { return int(n.size() * materials.size()); }
+};
+
 // Samples of one kind; a config without "groups" is a single group named "default".
 struct GroupConfig {
     std::string name;
@@ -44,6 +56,9 @@ struct GroupConfig {
     bool colour = false;             // kd and ks tinted per channel
     Range tint;                      // per-channel factor of kd and ks, with colour
     std::optional<LightSpec> light;  // sets the defaults light_x, light_y, light_z
+    // With a grid, sample i of the group is scene i / cells, then exponent and material in that
+    // order; samples = scenes x cells, and albedo, ks_share, n, colour and tint are not used.
+    std::optional<GridSpec> grid;
     std::map<std::string, DefineSpec> defines;
 };
 

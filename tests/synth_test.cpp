@@ -161,6 +161,44 @@ TEST(SampleSpec, IsAPureFunctionOfSeedAndIndexWithinTheRanges) {
     EXPECT_EQ(sampleName(7, 20000), "sample_00007");
 }
 
+// A grid: scene-major, then exponent, then material; exactly the listed values.
+TEST(SampleSpec, GridTakesEveryExponentWithEveryMaterialForEveryScene) {
+    SynthConfig config;
+    GroupConfig g;
+    g.name = "matrix";
+    g.scenes = g.scenePaths = {"a.xml", "b.xml"};
+    g.material = "sphere";
+    g.spp = 4;
+    g.grid = GridSpec{
+        {1, 300, 30000},
+        {{Color3(0.6, 0.5, 0.4), Color3::Zero()}, {Color3::Constant(0.45), Color3::Constant(0.5)}}};
+    g.samples = 2 * g.grid->cells();
+    config.groups = {g};
+    ASSERT_EQ(config.totalSamples(), 12);
+    for (int i = 0; i < 12; ++i) {
+        const SampleSpec s = drawSample(config, i);
+        EXPECT_EQ(s.scene, i / 6) << i;
+        EXPECT_EQ(s.material.n, (std::vector<double>{1, 300, 30000})[(i % 6) / 2]) << i;
+        const GridSpec::Material& m = g.grid->materials[i % 2];
+        EXPECT_TRUE((s.material.kd == m.kd).all() && (s.material.ks == m.ks).all()) << i;
+        EXPECT_EQ(s.defines.at("kd"), i % 2 ? "0.45" : "0.6, 0.5, 0.4");
+        EXPECT_EQ(s.defines.at("ks"), i % 2 ? "0.5" : "0");
+    }
+}
+
+// The recovery matrix config reads, and is what issue 12 asks: 5 lights x 2 scenes x 5 exponents x
+// 3 materials.
+TEST(SynthConfig, MatrixConfigHoldsEveryCell) {
+    const SynthConfig config = loadSynthConfig(PHONGFIT_CONFIGS_DIR "/matrix.json");
+    EXPECT_EQ(config.groups.size(), 10u);
+    EXPECT_EQ(config.totalSamples(), 150);
+    for (const GroupConfig& g : config.groups) {
+        ASSERT_TRUE(g.grid.has_value()) << g.name;
+        EXPECT_EQ(g.grid->n, (std::vector<double>{1, 30, 300, 3000, 30000})) << g.name;
+        EXPECT_EQ(g.grid->materials.size(), 3u);
+    }
+}
+
 TEST_F(Synth, BakedSceneKeepsTheFileAndSetsTheDefaults) {
     const std::string in = kScenes + "/sphere_orbit.xml";
     const fs::path out = path("baked.xml");
@@ -309,6 +347,19 @@ TEST_F(Synth, BadConfigsGiveOneLineNamingTheKey) {
     json duplicateGroups = baseConfig();
     duplicateGroups.erase("samples");
     duplicateGroups["groups"] = {{{"name", "a"}, {"samples", 1}}, {{"name", "a"}, {"samples", 2}}};
+    json grid = baseConfig();
+    grid.erase("samples");
+    for (const char* k : {"albedo", "ks_share", "n"}) grid.erase(k);
+    grid["grid"] = {{"n", {10, 100}}, {"materials", {{{"kd", 0.5}, {"ks", 0.2}}}}};
+    auto gridWith = [&](const std::string& key, const json& value) {
+        json c = grid;
+        c[key] = value;
+        return c;
+    };
+    json gridBadN = grid, gridOverOne = grid, gridBadColour = grid;
+    gridBadN["grid"]["n"] = {10, 0};
+    gridOverOne["grid"]["materials"][0] = {{"kd", {0.5, 0.9, 0.5}}, {"ks", 0.2}};
+    gridBadColour["grid"]["materials"][0]["ks"] = {0.1, 0.2};
     json badGroupValue = duplicateGroups;
     badGroupValue["groups"][1] = {{"name", "b"}, {"samples", 1}, {"ks_share", {0.5, 0.2}}};
 
@@ -335,6 +386,12 @@ TEST_F(Synth, BadConfigsGiveOneLineNamingTheKey) {
         {groupsAndSamples, {"samples", "in each group"}},
         {duplicateGroups, {"groups[1].name", "a second group"}},
         {badGroupValue, {"groups[1].ks_share = [0.5,0.2]"}},
+        {gridWith("samples", 2), {"samples = 2", "its cells for every scene"}},
+        {gridWith("albedo", 0.5), {"albedo = 0.5", "\"grid\" beside it"}},
+        {gridBadN, {"grid.n[1] = 0", "[0.001, 1e6]"}},
+        {gridOverOne, {"grid.materials[0]", "at most 1 in every channel"}},
+        {gridBadColour, {"grid.materials[0].ks = [0.1,0.2]", "[r, g, b]"}},
+        {gridWith("grid", {{"n", {10}}}), {"missing key 'grid.materials'"}},
     };
     for (const auto& [config, fragments] : cases) {
         const std::string file = writeConfig("bad.json", config);
