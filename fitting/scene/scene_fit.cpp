@@ -22,15 +22,19 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A scene whose only object is one sphere (convex: it cannot see itself) lit only by point and
-// directional lights has no indirect light at all: direct illumination (depth 2) is exact.
+// One sphere (convex: it cannot see itself) whose light can come back to it from nowhere else:
+// every other shape is an area emitter with a black surface. Whatever the emitters (point,
+// directional, area, environment), there is then no indirect light: direct illumination (depth 2)
+// is exact.
 bool directLightIsExact(const Scene& scene) {
-    if (scene.shapes.size() != 1 || scene.shapes[0].type != ShapeDesc::Type::Sphere ||
-        scene.shapes[0].areaRadiance)
-        return false;
-    return std::all_of(scene.emitters.begin(), scene.emitters.end(), [](const EmitterDesc& e) {
-        return e.type == EmitterDesc::Type::Point || e.type == EmitterDesc::Type::Directional;
-    });
+    int objects = 0;
+    for (const ShapeDesc& shape : scene.shapes) {
+        const PhongMaterial& surface = scene.bsdfs[shape.bsdf].params;
+        if (shape.areaRadiance && (surface.kd == 0).all() && (surface.ks == 0).all()) continue;
+        if (shape.type != ShapeDesc::Type::Sphere || shape.areaRadiance) return false;
+        ++objects;
+    }
+    return objects == 1;
 }
 
 std::vector<int> fittedBsdfs(const Scene& scene, const std::string& scenePath,
@@ -98,7 +102,7 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
     if (directLightIsExact(scene)) {
         v.maxDepth = 2;
         v.depthNote =
-            "indirect bounces (one convex object under point/directional lights: direct "
+            "indirect bounces (one convex object, and emitters that reflect nothing: direct "
             "light is exact, depth 2)";
     } else {
         v.depthNote = "nothing (path tracing at the scene's depth)";

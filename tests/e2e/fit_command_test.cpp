@@ -89,6 +89,28 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
     EXPECT_EQ(compare.rows, kSize);
 }
 
+// One sphere under area and environment light needs direct light only when no other surface can
+// send light back to it: the area light of sphere_sharp_area.xml is black, that of sphere_quad.xml
+// has Mitsuba's default diffuse surface, which reflects the sphere's light back onto it.
+TEST_F(FitCommand, LeavesOutIndirectLightOnlyWhereNothingElseReflects) {
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"sphere_sharp_area.xml", "left out: indirect bounces (one convex object"},
+        {"sphere_quad.xml", "left out: nothing (path tracing"}};
+    for (const auto& [scene, expected] : cases) {
+        const std::string file = kScenes + "/" + scene, image = path(scene + ".exr");
+        const std::vector<std::string> lobe = {"-D", "n=30", "-D", "spp=16"};
+        std::vector<std::string> args = {"render", file, "-o", image, "--quiet"};
+        args.insert(args.end(), lobe.begin(), lobe.end());
+        ASSERT_EQ(run(args).exitCode, 0);
+        args = {"fit", "--view", file + ":" + image,   "--material", "sphere", "--rounds",
+                "1",   "-o",     path(scene + "_fit"), "--quiet"};
+        args.insert(args.end(), lobe.begin(), lobe.end());
+        const auto r = run(args);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        EXPECT_NE(r.out.find(expected), std::string::npos) << scene << ":\n" << r.out;
+    }
+}
+
 // --time-budget: no round starts past it, the first always runs, and the report says so. A 1e-9 s
 // budget is spent before the first round ends; the round's solve stops there.
 TEST_F(FitCommand, TimeBudgetStopsTheRoundsAndSaysSo) {
