@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
@@ -52,22 +53,60 @@ Errors relativeStdOf(const MaterialFit& m, const PhongMaterial& truth) {
             m.nStd / std::max(truth.n, 1e-12)};
 }
 
-// Whether every parameter the fit did not hold lies within 3 of its standard errors of the truth
-// (kd and ks per channel): whether the uncertainty the tool reports covers its error.
-bool withinErrors(const MaterialFit& m, const PhongMaterial& truth) {
-    const auto held = [&](const std::string& name) {
+// One parameter of a fit beside its truth: `name` as the fit lists it when held ("kd.g", "n").
+struct ParameterCheck {
+    std::string name, group;  // group: "kd", "ks" or "n"
+    double value, truth, std;
+};
+
+std::vector<ParameterCheck> parameterChecks(const MaterialFit& m, const PhongMaterial& truth) {
+    std::vector<ParameterCheck> checks;
+    for (int c = 0; c < 3; ++c) {
+        const std::string channel(1, "rgb"[c]);
+        checks.push_back({"kd." + channel, "kd", m.kd[c], truth.kd[c], m.kdStd[c]});
+        checks.push_back({"ks." + channel, "ks", m.ks[c], truth.ks[c], m.ksStd[c]});
+    }
+    checks.push_back({"n", "n", m.n, truth.n, m.nStd});
+    return checks;
+}
+
+bool isHeld(const MaterialFit& m, const ParameterCheck& p) {
+    const auto listed = [&](const std::string& name) {
         return std::find(m.unconstrained.begin(), m.unconstrained.end(), name) !=
                m.unconstrained.end();
     };
-    const auto covers = [](double x, double t, double sd) { return std::abs(x - t) <= 3 * sd; };
-    for (int c = 0; c < 3; ++c) {
-        const std::string channel(1, "rgb"[c]);
-        if (!held("kd") && !held("kd." + channel) && !covers(m.kd[c], truth.kd[c], m.kdStd[c]))
-            return false;
-        if (!held("ks") && !held("ks." + channel) && !covers(m.ks[c], truth.ks[c], m.ksStd[c]))
-            return false;
+    return listed(p.group) || listed(p.name);
+}
+
+// Whether every parameter the fit did not hold lies within 3 of its standard errors of the truth
+// (kd and ks per channel): whether the uncertainty the tool reports covers its error.
+bool withinErrors(const MaterialFit& m, const PhongMaterial& truth) {
+    for (const ParameterCheck& p : parameterChecks(m, truth))
+        if (!isHeld(m, p) && !(std::abs(p.value - p.truth) <= 3 * p.std)) return false;
+    return true;
+}
+
+// Against the recovery target (BenchFitOptions' tolerances), for the parameters not held: whether
+// all are within tolerance, and whether the fit passes: its standard errors cover the truth
+// (withinErrors), and each parameter out of tolerance has a standard error of at least half the
+// tolerance, so that its +-2 std interval does not claim the target.
+struct Verdict {
+    bool withinTolerance = true, pass = true;
+};
+
+Verdict judge(const MaterialFit& m, const PhongMaterial& truth, const BenchFitOptions& o) {
+    Verdict v;
+    v.pass = withinErrors(m, truth);
+    for (const ParameterCheck& p : parameterChecks(m, truth)) {
+        if (isHeld(m, p)) continue;
+        const double tolerance = p.group == "n"
+                                     ? o.nTolerance * p.truth
+                                     : std::max(o.kdKsTolerance * p.truth, o.toleranceFloor);
+        if (std::abs(p.value - p.truth) <= tolerance) continue;
+        v.withinTolerance = false;
+        if (!(2 * p.std >= tolerance)) v.pass = false;
     }
-    return held("n") || covers(m.n, truth.n, m.nStd);
+    return v;
 }
 
 struct RoundPoint {
@@ -87,6 +126,7 @@ struct FitRow {
     double rmse = 0;
     Errors errors;
     bool withinErrors = false;
+    Verdict verdict{false, false};
     bool failed = false;
     std::string error;
     std::vector<RoundPoint> history;
@@ -96,6 +136,11 @@ struct FitRow {
 std::string startText(const Color3& c) {
     return c[0] == c[1] && c[1] == c[2] ? fmt::format("{:g}", c[0])
                                         : fmt::format("{:g},{:g},{:g}", c[0], c[1], c[2]);
+}
+
+double startExponent(const BenchFitOptions& o, double truth) {
+    if (!(o.startNFactor > 0)) return o.startN;
+    return truth * o.startNFactor <= kMaxStartN ? truth * o.startNFactor : truth / o.startNFactor;
 }
 
 bool finite(const MaterialFit& m) {
@@ -111,7 +156,7 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
     in.materials = {s.material};
     in.kd = o.startKd;
     in.ks = o.startKs;
-    in.n = o.startN;
+    in.n = startExponent(o, s.truth.n);
     const SceneRecording recording{spp, 0, 0, o.threads, o.adaptiveSpp};
     FitOptions options;
     options.maxRounds = o.rounds;
@@ -135,6 +180,7 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
         row.rmse = r.rmse;
         row.errors = errorsOf(row.fit, s.truth);
         row.withinErrors = withinErrors(row.fit, s.truth);
+        row.verdict = judge(row.fit, s.truth, o);
         double cumulative = 0;
         for (const FitRound& round : r.rounds) {
             cumulative += round.timeSeconds;
@@ -177,7 +223,7 @@ std::string recoveryCsv(const std::vector<FitRow>& rows) {
         "sample,group,spp_per_round,kd_r_true,kd_g_true,kd_b_true,ks_r_true,ks_g_true,ks_b_true,"
         "n_true,kd_r,kd_g,kd_b,ks_r,ks_g,ks_b,n,kd_r_std,kd_g_std,kd_b_std,ks_r_std,ks_g_std,"
         "ks_b_std,n_std,kd_rel_err,ks_rel_err,n_rel_err,rounds,converged,time_s,rmse,"
-        "unconstrained,within_3_std,failed,error\n";
+        "unconstrained,within_3_std,failed,error,within_tolerance,pass\n";
     auto colour = [](const Color3& c) {
         return fmt::format("{:.6g},{:.6g},{:.6g}", c[0], c[1], c[2]);
     };
@@ -193,9 +239,10 @@ std::string recoveryCsv(const std::vector<FitRow>& rows) {
                 r.errors.ks, r.errors.n, r.rounds, int(r.converged), r.seconds, r.rmse);
         else
             csv += fmt::format(",,,,,,,,,,,,,,,,,,{:.4g},,", r.seconds);
-        csv += fmt::format("{},{},{},{}\n",
+        csv += fmt::format("{},{},{},{},{},{}\n",
                            csvField(fmt::format("{}", fmt::join(m.unconstrained, ";"))),
-                           int(r.withinErrors), int(r.failed), csvField(r.error));
+                           int(r.withinErrors), int(r.failed), csvField(r.error),
+                           int(r.verdict.withinTolerance), int(r.verdict.pass));
     }
     return csv;
 }
@@ -228,6 +275,7 @@ struct SummaryRow {
     int spp = 0;
     std::string group;
     int fits = 0, failed = 0, threw = 0, notConverged = 0, unconstrained = 0, withinErrors = 0;
+    int withinTolerance = 0, passed = 0;
     double kdMedian = 0, kdP95 = 0, ksMedian = 0, ksP95 = 0, nMedian = 0, nP95 = 0;
     double medianSeconds = 0, totalSeconds = 0, medianRounds = 0;
 };
@@ -247,6 +295,8 @@ SummaryRow summarize(int spp, const std::string& group, const std::vector<const 
         s.notConverged += !r->converged;
         s.unconstrained += !r->fit.unconstrained.empty();
         s.withinErrors += r->withinErrors;
+        s.withinTolerance += r->verdict.withinTolerance;
+        s.passed += r->verdict.pass;
         kd.push_back(r->errors.kd);
         ks.push_back(r->errors.ks);
         n.push_back(r->errors.n);
@@ -289,19 +339,80 @@ std::string percent(double v) { return std::isnan(v) ? "-" : fmt::format("{:.3g}
 
 std::string markdownTable(const std::vector<SummaryRow>& rows) {
     std::string md =
-        "| spp/round | group | fits | failed | not converged | unconstrained | within 3 std | kd "
-        "median | kd p95 | ks median | ks p95 | n median | n p95 | rounds (median) | time median "
-        "[s] | time total [s] |\n"
-        "|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+        "| spp/round | group | fits | failed | not converged | unconstrained | within 3 std | "
+        "within tolerance | pass | kd median | kd p95 | ks median | ks p95 | n median | n p95 | "
+        "rounds (median) | time median [s] | time total [s] |\n"
+        "|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"
+        "|\n";
     for (const SummaryRow& s : rows)
         md += fmt::format(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2f} "
-            "| {:.1f} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | "
+            "{:.2f} | {:.1f} |\n",
             s.spp, s.group, s.fits, s.failed, s.notConverged, s.unconstrained, s.withinErrors,
-            percent(s.kdMedian), percent(s.kdP95), percent(s.ksMedian), percent(s.ksP95),
-            percent(s.nMedian), percent(s.nP95),
+            s.withinTolerance, s.passed, percent(s.kdMedian), percent(s.kdP95), percent(s.ksMedian),
+            percent(s.ksP95), percent(s.nMedian), percent(s.nP95),
             std::isnan(s.medianRounds) ? "-" : fmt::format("{:g}", s.medianRounds), s.medianSeconds,
             s.totalSeconds);
+    return md;
+}
+
+std::string cellText(const FitRow& r) {
+    if (!r.returned) return "FAIL (threw)";
+    const Errors sd = relativeStdOf(r.fit, r.sample->truth);
+    const auto part = [&](const char* name, double error, double std) {
+        const bool held = std::find(r.fit.unconstrained.begin(), r.fit.unconstrained.end(), name) !=
+                          r.fit.unconstrained.end();
+        return held ? fmt::format("{} free", name)
+                    : fmt::format("{} {}±{}", name, percent(error), percent(std));
+    };
+    const char* mark = r.verdict.withinTolerance && r.verdict.pass ? "ok"
+                       : r.verdict.pass                            ? "ok (std)"
+                                                                   : "FAIL";
+    return fmt::format("{}: {}, {}, {}; {:.1f} s", mark, part("kd", r.errors.kd, sd.kd),
+                       part("ks", r.errors.ks, sd.ks), part("n", r.errors.n, sd.n), r.seconds);
+}
+
+// Per group whose samples form a full grid (every material with every exponent, once): a row per
+// material and a column per exponent, each cell its verdict, errors +- reported standard errors
+// (relative) and time. Empty when no group is a grid.
+std::string matrixTables(const std::vector<FitRow>& rows, int spp) {
+    std::vector<std::string> groups;
+    for (const FitRow& r : rows)
+        if (r.spp == spp &&
+            std::find(groups.begin(), groups.end(), r.sample->group) == groups.end())
+            groups.push_back(r.sample->group);
+    std::string md;
+    for (const std::string& g : groups) {
+        std::vector<std::string> materials;
+        std::vector<double> exponents;
+        std::map<std::pair<std::string, double>, const FitRow*> cells;
+        bool grid = true;
+        for (const FitRow& r : rows) {
+            if (r.spp != spp || r.sample->group != g) continue;
+            const PhongMaterial& t = r.sample->truth;
+            const std::string material =
+                fmt::format("kd {}, ks {}", startText(t.kd), startText(t.ks));
+            if (std::find(materials.begin(), materials.end(), material) == materials.end())
+                materials.push_back(material);
+            if (std::find(exponents.begin(), exponents.end(), t.n) == exponents.end())
+                exponents.push_back(t.n);
+            grid = grid && cells.emplace(std::make_pair(material, t.n), &r).second;
+        }
+        if (!grid || cells.size() != materials.size() * exponents.size() || exponents.size() < 2)
+            continue;
+        std::sort(exponents.begin(), exponents.end());
+        md += fmt::format("\n### {} ({} spp/round)\n\n| material |", g, spp);
+        for (const double n : exponents) md += fmt::format(" n {:g} |", n);
+        md += "\n|:---|";
+        for (std::size_t i = 0; i < exponents.size(); ++i) md += ":---|";
+        md += "\n";
+        for (const std::string& m : materials) {
+            md += fmt::format("| {} |", m);
+            for (const double n : exponents)
+                md += fmt::format(" {} |", cellText(*cells.at({m, n})));
+            md += "\n";
+        }
+    }
     return md;
 }
 
@@ -315,6 +426,8 @@ json toJson(const SummaryRow& s) {
             {"not_converged", s.notConverged},
             {"unconstrained", s.unconstrained},
             {"within_3_std", s.withinErrors},
+            {"within_tolerance", s.withinTolerance},
+            {"pass", s.passed},
             {"kd_rel_err", {{"median", number(s.kdMedian)}, {"p95", number(s.kdP95)}}},
             {"ks_rel_err", {{"median", number(s.ksMedian)}, {"p95", number(s.ksP95)}}},
             {"n_rel_err", {{"median", number(s.nMedian)}, {"p95", number(s.nP95)}}},
@@ -448,7 +561,13 @@ void runBenchFit(const BenchFitOptions& o) {
         {"dataset", o.dataset},
         {"samples", samples.size()},
         {"spp_per_round", o.sppPerRound},
-        {"start", {{"kd", startText(o.startKd)}, {"ks", startText(o.startKs)}, {"n", o.startN}}},
+        {"start",
+         {{"kd", startText(o.startKd)},
+          {"ks", startText(o.startKs)},
+          {"n", o.startN},
+          {"n_factor", o.startNFactor}}},
+        {"tolerance",
+         {{"kd_ks", o.kdKsTolerance}, {"floor", o.toleranceFloor}, {"n", o.nTolerance}}},
         {"max_rounds", o.rounds},
         {"fail_threshold", o.failThreshold},
         {"interrupted", interruptRequested()}};
@@ -465,10 +584,18 @@ void runBenchFit(const BenchFitOptions& o) {
         "fails when it throws, returns a non-finite value, or a relative error exceeds {:g}; "
         "\"unconstrained\" counts fits that reported a parameter the image does not constrain; "
         "\"within 3 std\" those whose every parameter not held is within 3 of its reported "
-        "standard errors of the truth. "
-        "Start for every sample: kd {}, ks {}, n {:g}; at most {} rounds.",
-        o.failThreshold, startText(o.startKd), startText(o.startKs), o.startN, o.rounds);
-    const std::string md = markdownTable(table);
+        "standard errors of the truth; \"within tolerance\" those whose every parameter not "
+        "held is within {:g}% (kd, ks per channel, or {:g} absolute) and {:g}% (n) of the truth; "
+        "\"pass\" those within 3 std whose every parameter out of tolerance has a standard error "
+        "of at least half the tolerance. Start for every sample: kd {}, ks {}, n {}; at most {} "
+        "rounds.",
+        o.failThreshold, 100 * o.kdKsTolerance, o.toleranceFloor, 100 * o.nTolerance,
+        startText(o.startKd), startText(o.startKs),
+        o.startNFactor > 0 ? fmt::format("{:g} times off the truth", o.startNFactor)
+                           : fmt::format("{:g}", o.startN),
+        o.rounds);
+    std::string md = markdownTable(table);
+    for (const int spp : o.sppPerRound) md += matrixTables(rows, spp);
     writeText(
         dir / "summary.md",
         fmt::format("# bench fit: {}\n\n{}\n\n{}\nMachine: {}, {} cores ({} threads), {} "

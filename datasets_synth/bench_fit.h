@@ -17,6 +17,12 @@ struct BenchFitOptions {
     // The same start for every sample, so it is far from most truths.
     Color3 startKd = Color3::Constant(0.25), startKs = Color3::Constant(0.25);
     double startN = 100;
+    // When > 0, each sample's start exponent is this factor off its truth instead of startN:
+    // truth x factor, or truth / factor where that would pass kMaxStartN.
+    double startNFactor = 0;
+    // The recovery target: kd and ks per channel within kdKsTolerance (relative) or
+    // toleranceFloor (absolute), n within nTolerance (relative).
+    double kdKsTolerance = 0.02, toleranceFloor = 0.003, nTolerance = 0.05;
     int rounds = 6;
     int adaptiveSpp = 0;  // SceneRecording::adaptiveSpp (fit --adaptive-spp)
     // A fit fails when it throws, returns a non-finite value, or misses a parameter by more than
@@ -31,5 +37,8 @@ struct BenchFitOptions {
 // and DIR/machine.json, with each fit's own outputs in DIR/fits/spp<N>/<sample>/; prints the
 // summary table. Stops after the current fit on SIGINT, writing what it has.
 void runBenchFit(const BenchFitOptions& options);
+
+// The largest start exponent --start-n-factor picks by multiplying.
+constexpr double kMaxStartN = 1e5;
 
 }  // namespace phongfit

@@ -52,6 +52,10 @@ void addBenchCommand(CLI::App& app) {
     fit->add_option("--start-ks", *startKs, "start ks for every sample")->capture_default_str();
     fit->add_option("--start-n", f->startN, "start exponent for every sample")
         ->capture_default_str();
+    fit->add_option("--start-n-factor", f->startNFactor,
+                    "start each sample's exponent this factor off its truth (times it, or "
+                    "divided where that would pass 1e5) instead of --start-n")
+        ->check(CLI::Range(1.0, 1e6));
     fit->add_option("--rounds", f->rounds, "at most this many rounds per fit")
         ->check(CLI::Range(1, 100))
         ->capture_default_str();
