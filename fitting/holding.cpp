@@ -8,8 +8,9 @@
 namespace phongfit {
 
 namespace {
-// How near log n must be to log kMinExponent to count as at the bound (n within 0.1% of it).
-constexpr double kAtLowerBound = 1e-3;
+// Below this exponent the lobe has no shape left: (n + 2) / 2 cos^n alpha is 1 within 1% wherever
+// cos alpha > 0.37, a second diffuse term rather than a lobe the images show.
+constexpr double kShapelessExponent = 0.01;
 }  // namespace
 
 template <int P>
@@ -32,9 +33,8 @@ bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params) {
         const HeldParams& held = params.held(s);
         if (held.n) continue;
         const Eigen::Matrix<double, P, 1> y = params.natural(s);
-        // At its lower bound the lobe has no shape left (cos^n alpha = 1 wherever it is lit):
-        // a second diffuse term, not a lobe the images show, whatever ks's significance.
-        if (y[L::kLogN] <= std::log(kMinExponent) + kAtLowerBound) {
+        // Near its lower bound n is not measured, whatever ks's significance.
+        if (y[L::kLogN] <= std::log(kShapelessExponent)) {
             indices.push_back(s * P + L::kLogN);
             continue;
         }
