@@ -29,6 +29,39 @@ Vec2d squareToUniformDisk(double u1, double u2) {
     return Vec2d(r * std::cos(phi), r * std::sin(phi));
 }
 
+// 1 - cos(theta_max) of the cone of directions from p that meet the sphere; none when p is not
+// outside it. Written as sin^2 / (1 + cos), which keeps its digits for a light of any size.
+std::optional<double> sphereCone(const ShapeDesc& sphere, const Vec3d& p) {
+    const double dc2 = (sphere.center - p).squaredNorm();
+    const double r2 = sphere.radius * sphere.radius;
+    if (!(dc2 > r2 * (1 + 1e-9))) return std::nullopt;
+    const double sin2Max = r2 / dc2;
+    return sin2Max / (1 + std::sqrt(1 - sin2Max));
+}
+
+// A direction uniform in the cone from p around the sphere's centre, and where it meets the sphere
+// first (pbrt-v4, Sphere::Sample with a reference point): every sample lands on the visible cap,
+// with a constant solid-angle density, which area sampling of a large sphere is far from.
+LightSample sampleSphereCone(const ShapeDesc& sphere, const Vec3d& p, double oneMinusCosMax,
+                             const Vec3d& u, const Color3& radiance) {
+    const Vec3d toCentre = sphere.center - p;
+    const double dc = toCentre.norm();
+    const double sin2Max = (sphere.radius / dc) * (sphere.radius / dc);
+    // The angle theta from the axis, then alpha: the angle at the centre between the axis back
+    // towards p and the point where that direction meets the sphere.
+    const double oneMinusCos = oneMinusCosMax * u.x();
+    const double cosTheta = 1 - oneMinusCos;
+    const double sin2Theta = oneMinusCos * (2 - oneMinusCos);
+    const double cosAlpha = sin2Theta / std::sqrt(sin2Max) +
+                            cosTheta * std::sqrt(std::max(0.0, 1 - sin2Theta / sin2Max));
+    const double sinAlpha = std::sqrt(std::max(0.0, 1 - cosAlpha * cosAlpha));
+    const Frame<double> frame(toCentre / dc);
+    const Vec3d n = frame.toWorld(-sphericalDirection(sinAlpha, cosAlpha, 2 * kPi * u.y()));
+    const Vec3d d = sphere.center + sphere.radius * n - p;
+    const double dist = d.norm();
+    return LightSample{d / dist, dist, radiance, 1 / (2 * kPi * oneMinusCosMax), false};
+}
+
 Vec3d triangleVertex(const TriangleMesh& m, std::size_t tri, int k) {
     return m.positions[m.indices[3 * tri + k]].cast<double>();
 }
@@ -115,8 +148,12 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
         default:
             break;
     }
-    // Area light: a uniform point on the shape, then convert the area density to solid angle.
     const ShapeDesc& shape = scene_.shapes[l.shape];
+    if (l.type == Light::Type::Sphere) {
+        if (const std::optional<double> oneMinusCos = sphereCone(shape, p))
+            return sampleSphereCone(shape, p, *oneMinusCos, u, l.value);
+    }
+    // Area light: a uniform point on the shape, then convert the area density to solid angle.
     Vec3d q, n;
     if (l.type == Light::Type::Sphere) {
         n = squareToUniformSphere(u.x(), u.y());
@@ -147,6 +184,9 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
 
 double LightSet::pdfArea(int index, const Vec3d& p, const Hit& hit) const {
     const Light& l = lights_[index];
+    if (l.type == Light::Type::Sphere)
+        if (const std::optional<double> oneMinusCos = sphereCone(scene_.shapes[l.shape], p))
+            return 1 / (2 * kPi * *oneMinusCos);
     const Vec3d d = hit.p - p;
     const double cosLight = std::abs(hit.ng.dot(d.normalized()));
     if (!(cosLight > 0)) return 0;

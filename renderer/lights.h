@@ -1,6 +1,7 @@
 // The scene's emitters, sampled for next-event estimation: point and directional (delta) lights, a
-// constant environment, and area lights on meshes, spheres and disks (uniform by area; they emit
-// from the front side of their shape).
+// constant environment, and area lights on meshes and disks (uniform by area) and spheres (uniform
+// in the cone of directions that meets them, seen from outside); they emit from the front side of
+// their shape.
 #pragma once
 
 #include <array>
