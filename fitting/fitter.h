@@ -51,6 +51,11 @@ struct MaterialFit {
     PhongMaterial material() const;
 };
 
+// The free parameters whose standard error is as large as the parameter itself (kd and ks:
+// std >= max(value, 0.01) in some channel; n: std >= n, uncertain by a factor e or more), by
+// name ("kd", "ks", "n"): what the round's recordings and the images do not resolve.
+std::vector<std::string> unresolvedParameters(const MaterialFit& fit);
+
 // FitOptions::fitExposure: the global scale s of every prediction (observed = s * rendered).
 struct ExposureFit {
     double value = 1, std = 0;
@@ -121,11 +126,12 @@ struct FitResult {
     std::vector<FitRound> rounds;
     double timeSeconds = 0;
     // The parameters stopped moving between rounds or, on exact path sets (the same list passed
-    // as both recordings), the solver converged.
+    // as both recordings), the solver converged; and every free parameter is resolved.
     bool converged = false;
     bool interrupted = false;  // FitOptions::stopRequested cut the fit short
-    // Why the rounds stopped: "converged", "rounds" (FitOptions::maxRounds spent), "time budget"
-    // (FitOptions::timeBudget) or "interrupted".
+    // Why the rounds stopped: "converged", "unresolved" (the estimate stopped moving, but some
+    // parameter's standard error is as large as itself: unresolvedParameters), "rounds"
+    // (FitOptions::maxRounds spent), "time budget" (FitOptions::timeBudget) or "interrupted".
     std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.

@@ -128,7 +128,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             break;
         }
         if (result.converged) {
-            result.stopReason = "converged";
+            // Stopped moving, but not at a solution the recordings resolve: say so.
+            const bool resolved =
+                std::all_of(out.materials.begin(), out.materials.end(),
+                            [](const MaterialFit& m) { return unresolvedParameters(m).empty(); });
+            result.converged = resolved;
+            result.stopReason = resolved ? "converged" : "unresolved";
             break;
         }
         if (sets.first != sets.second && round + 1 < maxRounds) {

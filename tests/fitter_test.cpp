@@ -250,6 +250,30 @@ TEST(BoxManifold, ClampsFreeCoordinatesAndKeepsHeldOnes) {
 
 // ---- Identifiability and uncertainty on given information matrices
 
+// "converged" needs a resolved estimate: a parameter whose standard error is as large as itself
+// (kd, ks against max(value, 0.01) per channel; n against n) is named, unless it is held.
+TEST(Resolution, NamesParametersAsUncertainAsTheyAreLarge) {
+    MaterialFit fit;
+    fit.kd = Color3(0.5, 0.4, 0.3);
+    fit.kdStd = Color3(0.01, 0.01, 0.01);
+    fit.ks = Color3(0.2, 0.2, 0.02);
+    fit.ksStd = Color3(0.01, 0.01, 0.019);
+    fit.n = 100;
+    fit.nStd = 99;
+    EXPECT_TRUE(unresolvedParameters(fit).empty());
+    fit.ksStd[2] = 0.02;  // as large as ks.b
+    fit.nStd = 100;
+    EXPECT_EQ(unresolvedParameters(fit), (std::vector<std::string>{"ks", "n"}));
+    fit.ks = Color3::Zero();  // no lobe: ks's floor is 0.01 absolute
+    fit.ksStd = Color3::Constant(0.009);
+    EXPECT_EQ(unresolvedParameters(fit), (std::vector<std::string>{"n"}));
+    fit.ksStd[0] = 0.011;
+    fit.unconstrained = {"ks.r", "n"};  // held: reported unconstrained instead
+    EXPECT_TRUE(unresolvedParameters(fit).empty());
+    fit.kdStd[1] = 0.4;
+    EXPECT_EQ(unresolvedParameters(fit), (std::vector<std::string>{"kd"}));
+}
+
 TEST(Identifiability, FindsInvisibleAndCollinearParameters) {
     // Columns of J: a, b, 0 (invisible), a + 2b (collinear with the first two), c.
     Eigen::MatrixXd j(6, 5);

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include "comparison_image.h"
@@ -14,6 +15,18 @@ namespace {
 std::string notConvergedBecause(const FitResult& result) {
     if (result.stopReason == "time budget") return "the time budget was spent";
     if (result.stopReason == "interrupted") return "interrupted";
+    if (result.stopReason == "unresolved") {
+        std::vector<std::string> names;
+        for (const MaterialFit& m : result.materials)
+            for (const std::string& name : unresolvedParameters(m))
+                if (std::find(names.begin(), names.end(), name) == names.end())
+                    names.push_back(name);
+        return fmt::format(
+            "the estimate stopped moving, but {} {} standard errors as large as {} values (more "
+            "paths, --spp or --adaptive-spp, may resolve them)",
+            fmt::join(names, ", "), names.size() == 1 ? "has" : "have",
+            names.size() == 1 ? "its" : "their");
+    }
     const std::size_t rounds = result.rounds.size();
     return fmt::format("{} round{} spent and the last still moved", rounds, rounds == 1 ? "" : "s");
 }
