@@ -28,8 +28,10 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 // Relative errors: of a colour, the RGB distance over the true colour's length.
+// Relative, or absolute where the truth is 0 (no lobe).
 double colourError(const Color3& x, const Color3& truth) {
-    return (x - truth).matrix().norm() / std::max(truth.matrix().norm(), 1e-12);
+    const double norm = truth.matrix().norm();
+    return (x - truth).matrix().norm() / (norm > 0 ? norm : 1.0);
 }
 double exponentError(double n, double truth) {
     return std::abs(n - truth) / std::max(truth, 1e-12);
@@ -47,7 +49,8 @@ Errors errorsOf(const MaterialFit& m, const PhongMaterial& truth) {
 // fit says its error is, to set beside what it is.
 Errors relativeStdOf(const MaterialFit& m, const PhongMaterial& truth) {
     const auto relative = [](const Color3& sd, const Color3& t) {
-        return sd.matrix().norm() / std::max(t.matrix().norm(), 1e-12);
+        const double norm = t.matrix().norm();
+        return sd.matrix().norm() / (norm > 0 ? norm : 1.0);
     };
     return {relative(m.kdStd, truth.kd), relative(m.ksStd, truth.ks),
             m.nStd / std::max(truth.n, 1e-12)};
@@ -70,12 +73,13 @@ std::vector<ParameterCheck> parameterChecks(const MaterialFit& m, const PhongMat
     return checks;
 }
 
+// Whether the fit lists `name` ("kd", "ks.g", "n") as unconstrained.
+bool held(const MaterialFit& m, const std::string& name) {
+    return std::find(m.unconstrained.begin(), m.unconstrained.end(), name) != m.unconstrained.end();
+}
+
 bool isHeld(const MaterialFit& m, const ParameterCheck& p) {
-    const auto listed = [&](const std::string& name) {
-        return std::find(m.unconstrained.begin(), m.unconstrained.end(), name) !=
-               m.unconstrained.end();
-    };
-    return listed(p.group) || listed(p.name);
+    return held(m, p.group) || held(m, p.name);
 }
 
 // Whether every parameter the fit did not hold lies within 3 of its standard errors of the truth
@@ -190,7 +194,9 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
         if (!finite(row.fit)) {
             row.failed = true;
             row.error = "non-finite result";
-        } else if (std::max({row.errors.kd, row.errors.ks, row.errors.n}) > o.failThreshold) {
+        } else if (std::max({held(row.fit, "kd") ? 0 : row.errors.kd,
+                             held(row.fit, "ks") ? 0 : row.errors.ks,
+                             held(row.fit, "n") ? 0 : row.errors.n}) > o.failThreshold) {
             row.failed = true;
             row.error = fmt::format("relative error above {}", o.failThreshold);
         }
@@ -360,16 +366,19 @@ std::string cellText(const FitRow& r) {
     if (!r.returned) return "FAIL (threw)";
     const Errors sd = relativeStdOf(r.fit, r.sample->truth);
     const auto part = [&](const char* name, double error, double std) {
-        const bool held = std::find(r.fit.unconstrained.begin(), r.fit.unconstrained.end(), name) !=
-                          r.fit.unconstrained.end();
-        return held ? fmt::format("{} free", name)
-                    : fmt::format("{} {}±{}", name, percent(error), percent(std));
+        return held(r.fit, name) ? fmt::format("{} free", name)
+                                 : fmt::format("{} {}±{}", name, percent(error), percent(std));
     };
     const char* mark = r.verdict.withinTolerance && r.verdict.pass ? "ok"
                        : r.verdict.pass                            ? "ok (std)"
                                                                    : "FAIL";
-    return fmt::format("{}: {}, {}, {}; {:.1f} s", mark, part("kd", r.errors.kd, sd.kd),
-                       part("ks", r.errors.ks, sd.ks), part("n", r.errors.n, sd.n), r.seconds);
+    // No lobe in the truth: ks's error is its value, absolute.
+    const std::string ks =
+        (r.sample->truth.ks == 0).all()
+            ? fmt::format("ks {:.2g}±{:.2g}", r.fit.ks.maxCoeff(), r.fit.ksStd.maxCoeff())
+            : part("ks", r.errors.ks, sd.ks);
+    return fmt::format("{}: {}, {}, {}; {:.1f} s", mark, part("kd", r.errors.kd, sd.kd), ks,
+                       part("n", r.errors.n, sd.n), r.seconds);
 }
 
 // Per group whose samples form a full grid (every material with every exponent, once): a row per
@@ -580,8 +589,9 @@ void runBenchFit(const BenchFitOptions& o) {
     for (const SummaryRow& s : table) summary["rows"].push_back(toJson(s));
     writeText(dir / "summary.json", summary.dump(2) + "\n");
     const std::string definitions = fmt::format(
-        "Relative errors: |x - x_true| / |x_true|, for kd and ks with |.| the RGB length. A fit "
-        "fails when it throws, returns a non-finite value, or a relative error exceeds {:g}; "
+        "Relative errors: |x - x_true| / |x_true|, for kd and ks with |.| the RGB length "
+        "(absolute where the truth is 0). A fit fails when it throws, returns a non-finite value, "
+        "or the error of a parameter it did not hold exceeds {:g}; "
         "\"unconstrained\" counts fits that reported a parameter the image does not constrain; "
         "\"within 3 std\" those whose every parameter not held is within 3 of its reported "
         "standard errors of the truth; \"within tolerance\" those whose every parameter not "
