@@ -374,7 +374,7 @@ std::string cellText(const FitRow& r) {
                                                                    : "FAIL";
     // No lobe in the truth: ks's error is its value, absolute.
     const std::string ks =
-        (r.sample->truth.ks == 0).all()
+        (r.sample->truth.ks == 0).all() && !held(r.fit, "ks")
             ? fmt::format("ks {:.2g}±{:.2g}", r.fit.ks.maxCoeff(), r.fit.ksStd.maxCoeff())
             : part("ks", r.errors.ks, sd.ks);
     return fmt::format("{}: {}, {}, {}; {:.1f} s", mark, part("kd", r.errors.kd, sd.kd), ks,

@@ -194,6 +194,37 @@ TEST_F(Bench, FitRecoversTheSmallDatasetAndSummarizes) {
     EXPECT_TRUE(fs::exists(path("fit/fits/spp4/sample_0000/fit.json")));
 }
 
+// The recovery matrix's fast subset (configs/matrix_ci.json: point, directional and small area
+// lights, n 30 and 300, no lobe and a strong coloured one, 64x64), fitted at defaults from n 100
+// times off and kd, ks 0.3: every cell passes (truth within 3 reported standard errors, and
+// each parameter out of tolerance with a standard error that says so), none fails, and most are
+// within the tolerances outright. The whole matrix is `bench fit` on configs/matrix.json.
+TEST_F(Bench, RecoveryMatrixSubsetPassesAtDefaults) {
+    const auto synth = run({"synth", PHONGFIT_CONFIGS_DIR "/matrix_ci.json", "-o",
+                            path("matrix").string(), "--quiet"});
+    ASSERT_EQ(synth.exitCode, 0) << synth.err;
+    const auto r = run({"bench", "fit", path("matrix").string(), "--spp-per-round", "4",
+                        "--start-n-factor", "100", "--start-kd", "0.3", "--start-ks", "0.3", "-o",
+                        path("fit").string(), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const json summary = json::parse(std::ifstream(path("fit/summary.json")));
+    int groups = 0;
+    for (const json& row : summary["rows"]) {
+        if (row["group"] == "all") continue;
+        ++groups;
+        EXPECT_EQ(row["fits"], 4) << row["group"];
+        EXPECT_EQ(row["failed"], 0) << row["group"];
+        EXPECT_EQ(row["pass"], 4) << row["group"];
+        EXPECT_GE(row["within_tolerance"].get<int>(), 2) << row["group"];
+    }
+    EXPECT_EQ(groups, 3);
+    std::ifstream md(path("fit/summary.md"));
+    const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("### sphere_small_area (4 spp/round)"), std::string::npos) << text;
+    EXPECT_NE(text.find("| material | n 30 | n 300 |"), std::string::npos) << text;
+    EXPECT_EQ(text.find("FAIL"), std::string::npos) << text;
+}
+
 TEST_F(Bench, FitRefusesAnIncompleteDataset) {
     fs::create_directories(path("incomplete/sample_0000"));
     const auto r = run({"bench", "fit", path("incomplete").string(), "-o", path("x").string()});
