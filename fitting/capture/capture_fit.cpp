@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "error.h"
+#include "grid_search.h"
 #include "phong_brdf.h"
 #include "replay.h"
 
@@ -193,21 +194,22 @@ std::vector<PathSet> withoutLobe(const std::vector<PathSet>& paths) {
     return out;
 }
 
-HoldoutPrediction predictCapture(const CaptureModel& model, const PhongMaterial& phong,
-                                 const PhongMaterial& lambertian) {
+HoldoutPrediction predictCapture(const CaptureModel& model, const PairPredictor& phong,
+                                 const PairPredictor& lambertian) {
     HoldoutPrediction out;
     ErrorSums phongTotal, lambertianTotal;
     for (std::size_t v = 0; v < model.paths.size(); ++v) {
-        const PathSet& ps = model.paths[v];
         const Observation& obs = model.observations[v];
         ErrorSums phongSums, lambertianSums;
-        for (std::size_t p = 0; p < ps.background.size(); ++p) {
+        for (std::size_t p = 0; p < model.entries[v].size(); ++p) {
+            const std::optional<Color3> byPhong = phong(v, p), byLambertian = lambertian(v, p);
+            if (!byPhong || !byLambertian) continue;
             const Color3 observed(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]);
-            phongSums.squares += (replayPixel(ps, p, &phong) - observed).square().sum();
-            lambertianSums.squares += (replayPixel(ps, p, &lambertian) - observed).square().sum();
+            phongSums.squares += (*byPhong - observed).square().sum();
+            lambertianSums.squares += (*byLambertian - observed).square().sum();
             phongSums.observedSquares += observed.square().sum();
+            ++phongSums.pairs;
         }
-        phongSums.pairs = ps.background.size();
         lambertianSums.observedSquares = phongSums.observedSquares;
         lambertianSums.pairs = phongSums.pairs;
         out.perLight.push_back({model.lights[v], phongSums.result(), lambertianSums.result()});
@@ -219,34 +221,25 @@ HoldoutPrediction predictCapture(const CaptureModel& model, const PhongMaterial&
     return out;
 }
 
+HoldoutPrediction predictCapture(const CaptureModel& model, const PhongMaterial& phong,
+                                 const PhongMaterial& lambertian) {
+    const auto by = [&](const PhongMaterial& m) -> PairPredictor {
+        return [&model, &m](std::size_t v, std::size_t p) -> std::optional<Color3> {
+            return replayPixel(model.paths[v], p, &m);
+        };
+    };
+    return predictCapture(model, by(phong), by(lambertian));
+}
+
 PhongMaterial startScan(const CaptureModel& model, bool lobe) {
     const std::vector<ScanSample> samples = scanSamples(model);
     if (samples.empty()) throw Error("the start scan needs at least one (pixel, light) pair");
     if (!lobe) return bestReflectances(samples, std::nullopt).first;
-    // log2 n on the grid, then golden-section search around the best grid point (the residual is
-    // unimodal in n wherever the images show one lobe).
-    double best = 0, bestError = std::numeric_limits<double>::infinity();
-    for (int e = 0; e <= kScanMaxLog2N; ++e) {
-        const double error = bestReflectances(samples, std::ldexp(1.0, e)).second;
-        if (error < bestError) bestError = error, best = e;
-    }
-    const auto error = [&](double log2n) {
-        return bestReflectances(samples, std::exp2(log2n)).second;
-    };
-    constexpr double kGolden = 0.6180339887498949;
-    double a = std::max(best - 1, 0.0), b = std::min(best + 1, double(kScanMaxLog2N));
-    double c = b - kGolden * (b - a), d = a + kGolden * (b - a);
-    double fc = error(c), fd = error(d);
-    while (b - a > kScanTolerance) {
-        if (fc < fd) {
-            b = d, d = c, fd = fc;
-            c = b - kGolden * (b - a), fc = error(c);
-        } else {
-            a = c, c = d, fc = fd;
-            d = a + kGolden * (b - a), fd = error(d);
-        }
-    }
-    PhongMaterial start = bestReflectances(samples, std::exp2(0.5 * (a + b))).first;
+    // The residual is unimodal in n wherever the images show one lobe.
+    const double log2n = gridThenGoldenMinimum(
+        [&](double e) { return bestReflectances(samples, std::exp2(e)).second; }, 0, kScanMaxLog2N,
+        1, kScanTolerance);
+    PhongMaterial start = bestReflectances(samples, std::exp2(log2n)).first;
     for (int ch = 0; ch < 3; ++ch) {
         start.ks[ch] = std::clamp(start.ks[ch], kMinStartKs, 1.0);
         start.kd[ch] = std::clamp(start.kd[ch], 0.0, 1.0 - start.ks[ch]);
@@ -254,16 +247,21 @@ PhongMaterial startScan(const CaptureModel& model, bool lobe) {
     return start;
 }
 
+CaptureModel buildUsableModel(const Capture& capture, const std::vector<CaptureImage>& images,
+                              double minCos, const std::string& which) {
+    CaptureModel model = buildCaptureModel(capture, images, minCos);
+    if (model.paths.empty())
+        throw Error(
+            fmt::format("capture '{}': no (pixel, light) pair of the {} {} lights can be used ({})",
+                        capture.dir, images.size(), which, describeLeftOut(model)));
+    return model;
+}
+
 CaptureFit fitCapture(const Capture& capture, const std::vector<CaptureImage>& images,
                       const std::vector<CaptureImage>& heldOutImages,
                       const CaptureFitOptions& options) {
     CaptureFit out;
-    out.model = buildCaptureModel(capture, images, options.minCos);
-    if (out.model.paths.empty())
-        throw Error(
-            fmt::format("capture '{}': no (pixel, light) pair of the {} fitted lights can "
-                        "be used ({})",
-                        capture.dir, images.size(), describeLeftOut(out.model)));
+    out.model = buildUsableModel(capture, images, options.minCos, "fitted");
     // The paths are exact: least squares is unbiased on them, one set serves as both of the
     // fitter's independent recordings, and re-recording changes nothing: one round.
     FitOptions fit = options.fit;
@@ -271,14 +269,8 @@ CaptureFit fitCapture(const Capture& capture, const std::vector<CaptureImage>& i
     fit.scanStart = false;  // startScan below, on a subsample
     const std::vector<Observation>& obs = out.model.observations;
 
-    if (!heldOutImages.empty()) {
-        out.heldOut = buildCaptureModel(capture, heldOutImages, options.minCos);
-        if (out.heldOut->paths.empty())
-            throw Error(
-                fmt::format("capture '{}': no (pixel, light) pair of the {} held-out "
-                            "lights can be used ({})",
-                            capture.dir, heldOutImages.size(), describeLeftOut(*out.heldOut)));
-    }
+    if (!heldOutImages.empty())
+        out.heldOut = buildUsableModel(capture, heldOutImages, options.minCos, "held-out");
     out.start = startScan(out.model, true);
     out.phong = fitPathSets(obs, out.model.paths, out.model.paths, {out.start}, fit);
     if (out.heldOut) {

@@ -16,6 +16,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -47,6 +48,11 @@ struct CaptureModel {
 CaptureModel buildCaptureModel(const Capture& capture, const std::vector<CaptureImage>& images,
                                double minCos);
 
+// buildCaptureModel, or Error if no pair can be used, naming the capture, how many `which` lights
+// ("fitted", "held-out") there were and why their pairs were left out.
+CaptureModel buildUsableModel(const Capture& capture, const std::vector<CaptureImage>& images,
+                              double minCos, const std::string& which);
+
 // The same path sets with the specular lobe removed (cos alpha = 0 at every vertex).
 std::vector<PathSet> withoutLobe(const std::vector<PathSet>& paths);
 
@@ -72,6 +78,14 @@ struct HoldoutPrediction {
 // with ks at least 0.001 so the fitter sees the lobe (at ks = 0 the images do not constrain n).
 // Without the lobe: kd alone, ks = 0. Throws Error if the model has no pair.
 PhongMaterial startScan(const CaptureModel& model, bool lobe);
+
+// The predicted value of entry `entry` of view `view`, or nothing where the model makes no
+// prediction (a pixel it did not fit); such pairs are left out of both errors.
+using PairPredictor = std::function<std::optional<Color3>(std::size_t view, std::size_t entry)>;
+
+// The error of predicting every view of `model` with each predictor.
+HoldoutPrediction predictCapture(const CaptureModel& model, const PairPredictor& phong,
+                                 const PairPredictor& lambertian);
 
 // The error of predicting every view of `model` with each material.
 HoldoutPrediction predictCapture(const CaptureModel& model, const PhongMaterial& phong,

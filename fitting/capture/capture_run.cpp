@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
@@ -74,11 +75,14 @@ std::size_t medianView(const HoldoutPrediction& prediction) {
     return order[order.size() / 2];
 }
 
-// One row per material (Phong, then Lambertian-only if fitted), cropped to the mask; left-out
-// pairs are grey, pixels outside the mask black (comparison_image.h).
-cv::Mat comparison(const Capture& capture, const CaptureImage& image, const CaptureModel& model,
-                   std::size_t view, const std::vector<PhongMaterial>& rows) {
-    const PathSet& ps = model.paths[view];
+// The prediction of entry k of the shown view, one function per row.
+using RowPrediction = std::function<Color3(std::size_t k)>;
+
+// One row per model (Phong, then the Lambertian baseline if fitted), cropped to the mask;
+// left-out pairs are grey, pixels outside the mask black (comparison_image.h).
+cv::Mat comparison(const Capture& capture, const CaptureImage& image,
+                   const std::vector<std::uint32_t>& entries,
+                   const std::vector<RowPrediction>& rows) {
     int x0 = capture.width, y0 = capture.height, x1 = 0, y1 = 0;
     for (std::uint32_t p : capture.pixels) {
         const int x = int(p % capture.width), y = int(p / capture.width);
@@ -103,26 +107,191 @@ cv::Mat comparison(const Capture& capture, const CaptureImage& image, const Capt
         panels.observed[at[i]] = image.rgb[i].cast<double>();
         panels.state[at[i]] = ComparePixel::LeftOut;
     }
-    for (std::size_t k = 0; k < model.entries[view].size(); ++k) {
-        const std::size_t p = at[model.entries[view][k]];
+    for (std::size_t k = 0; k < entries.size(); ++k) {
+        const std::size_t p = at[entries[k]];
         panels.state[p] = ComparePixel::Compared;
-        for (std::size_t row = 0; row < rows.size(); ++row)
-            panels.predicted[row][p] = replayPixel(ps, k, &rows[row]);
+        for (std::size_t row = 0; row < rows.size(); ++row) panels.predicted[row][p] = rows[row](k);
     }
     return comparisonImage(panels);
 }
 
-nlohmann::json holdoutJson(const Capture& capture, const CaptureFit& fit) {
-    nlohmann::json out = errorJson(fit.holdout->phong, fit.holdout->lambertian);
-    out["pairs_left_out"] = fit.heldOut->leftOut;
+nlohmann::json holdoutJson(const Capture& capture, const HoldoutPrediction& holdout,
+                           const CaptureModel& heldOut) {
+    nlohmann::json out = errorJson(holdout.phong, holdout.lambertian);
+    out["pairs_left_out"] = heldOut.leftOut;
     out["per_light"] = nlohmann::json::array();
-    for (const LightPrediction& l : fit.holdout->perLight) {
+    for (const LightPrediction& l : holdout.perLight) {
         nlohmann::json j = errorJson(l.phong, l.lambertian);
         j["light"] = capture.lights[l.light].number;
         j["image"] = capture.lights[l.light].imagePath;
         out["per_light"].push_back(j);
     }
     return out;
+}
+
+nlohmann::json modelJson(const std::string& albedo, const std::vector<std::string>& lobes,
+                         const std::vector<std::string>& lambertianLobes,
+                         const CaptureFitInputs& inputs, const std::string& loss) {
+    return {{"kind", "direct light on known normals"},
+            {"albedo", albedo},
+            {"view", "orthographic, direction (0, 0, 1) in the camera frame"},
+            {"lights", "directional; each image divided by its light's intensity"},
+            {"lobes", lobes},
+            {"lambertian_lobes", lambertianLobes},
+            {"bounces", 1},
+            {"max_depth", 2},
+            {"min_cos", inputs.fit.minCos},
+            {"loss", loss}};
+}
+
+// What both kinds of capture fit report alike.
+void describeCapture(const CaptureRun& run, const CaptureFitInputs& inputs,
+                     const CaptureModel& model, nlohmann::json& report) {
+    const Capture& capture = run.capture;
+    report["capture"] = {{"dir", inputs.dir},
+                         {"mask", capture.maskPath},
+                         {"normals", capture.normalsPath},
+                         {"mask_pixels", capture.pixels.size()},
+                         {"lights", lightNumbers(capture, run.lights)},
+                         {"holdout_lights", lightNumbers(capture, run.holdout)}};
+    report["left_out"] = {
+        "path tracing: no rays are traced; each (pixel, light) pair is the light's direct "
+        "reflection on the known normal",
+        "indirect light and interreflection: one bounce (depth 1; Mitsuba maxDepth 2)",
+        "cast shadows: the surface is assumed unoccluded; pairs with n.l below min_cos are left "
+        "out instead",
+        "clipped and non-finite pixels",
+        "mask pixels whose normal is zero, not unit or not finite (pixels.bad_normals)"};
+    report["pairs"] = {{"total", model.pairs}, {"used", model.used}, {"left_out", model.leftOut}};
+    report["decoding"] = run.images.front().decoding;
+}
+
+// The compare.png of a typical held-out light (median Phong error), or of the middle fitted light
+// without a hold-out; records which in report["compare"].
+cv::Mat compareTypicalLight(
+    const CaptureRun& run, const CaptureModel& model, const std::optional<CaptureModel>& heldOut,
+    const std::optional<HoldoutPrediction>& holdout,
+    const std::function<std::vector<RowPrediction>(const CaptureModel&, std::size_t view)>& rows,
+    const std::vector<std::string>& rowNames, nlohmann::json& report) {
+    const CaptureModel& shown = heldOut ? *heldOut : model;
+    const std::size_t view = holdout ? medianView(*holdout) : shown.lights.size() / 2;
+    const std::vector<CaptureImage>& images = heldOut ? run.heldOutImages : run.images;
+    const CaptureImage& image = *std::find_if(
+        images.begin(), images.end(), [&](const auto& i) { return i.light == shown.lights[view]; });
+    const CaptureLight& light = run.capture.lights[shown.lights[view]];
+    report["compare"] = {{"light", light.number},
+                         {"image", light.imagePath},
+                         {"held_out", heldOut.has_value()},
+                         {"rows", rowNames},
+                         {"columns", {"observed", "predicted", "signed error"}}};
+    return comparison(run.capture, image, shown.entries[view], rows(shown, view));
+}
+
+void writeReport(const fs::path& out, const nlohmann::json& report, const cv::Mat& compare) {
+    writeAtomically(out / "fit.json", [&](const fs::path& tmp) {
+        std::ofstream file(tmp);
+        file << report.dump(2) << "\n";
+        file.close();
+        if (!file) throw Error(fmt::format("{}: could not be written", tmp.string()));
+    });
+    writePng(compare, (out / "compare.png").string());
+}
+
+void writeUniformFit(const CaptureRun& run, const CaptureFitInputs& inputs, const std::string& loss,
+                     const fs::path& out) {
+    const CaptureFit& fit = *run.fit;
+    std::vector<PhongMaterial> materials = {fit.phong.materials[0].material()};
+    if (fit.lambertian) materials.push_back(fit.lambertian->materials[0].material());
+    nlohmann::json report = toJson(fit.phong, {"capture"});
+    describeCapture(run, inputs, fit.model, report);
+    report["model"] = modelJson("uniform", {"diffuse", "specular"}, {"diffuse"}, inputs, loss);
+    report["start"] = {{"kd", rgb(fit.start.kd)}, {"ks", rgb(fit.start.ks)}, {"n", fit.start.n}};
+    report["pixels"] = {{"used", run.capture.pixels.size()},
+                        {"bad_normals", run.capture.badNormals}};
+    // The Lambertian-only fit, reported as the Phong fit is (its ks and n are unconstrained).
+    report["lambertian"] =
+        fit.lambertian ? toJson(*fit.lambertian, {"capture"}) : nlohmann::json(nullptr);
+    report["holdout"] = fit.holdout ? holdoutJson(run.capture, *fit.holdout, *fit.heldOut)
+                                    : nlohmann::json(nullptr);
+    const auto rows = [&](const CaptureModel& shown, std::size_t view) {
+        std::vector<RowPrediction> out;
+        for (const PhongMaterial& m : materials)
+            out.push_back([&shown, view, m](std::size_t k) -> Color3 {
+                return replayPixel(shown.paths[view], k, &m);
+            });
+        return out;
+    };
+    const std::vector<std::string> names = fit.lambertian
+                                               ? std::vector<std::string>{"phong", "lambertian"}
+                                               : std::vector<std::string>{"phong"};
+    const cv::Mat compare =
+        compareTypicalLight(run, fit.model, fit.heldOut, fit.holdout, rows, names, report);
+    writeReport(out, report, compare);
+}
+
+// The albedo map as a linear EXR and a PNG preview (exposed so the brightest 1% is white).
+void writeAlbedoMap(const Capture& capture, const std::vector<Color3>& kd, const fs::path& out) {
+    Image image(capture.width, capture.height);
+    std::vector<double> luminance;
+    for (std::size_t i = 0; i < capture.pixels.size(); ++i) {
+        const std::uint32_t p = capture.pixels[i];
+        image.set(int(p % std::uint32_t(capture.width)), int(p / std::uint32_t(capture.width)),
+                  kd[i].cast<float>());
+        luminance.push_back(kd[i].maxCoeff());
+    }
+    writeExr(image, (out / "kd.exr").string());
+    const auto white = luminance.begin() + std::ptrdiff_t(0.99 * double(luminance.size() - 1));
+    std::nth_element(luminance.begin(), white, luminance.end());
+    writePng(image, (out / "kd.png").string(), *white > 0 ? 1 / *white : 1.0);
+}
+
+void writeAlbedoMapFit(const CaptureRun& run, const CaptureFitInputs& inputs, const fs::path& out) {
+    const AlbedoMapCaptureFit& fit = *run.albedoMap;
+    const AlbedoMapFit& m = fit.fit;
+    nlohmann::json report;
+    report["albedo"] = "per-pixel";
+    report["ks"] = rgb(m.ks);
+    report["ks_std"] = rgb(m.ksStd);
+    report["n"] = m.n;
+    report["n_std"] = std::isfinite(m.nStd) ? nlohmann::json(m.nStd) : nlohmann::json(nullptr);
+    report["unconstrained"] = m.unconstrained;
+    report["n_at_search_bound"] = m.nAtBound;
+    report["n_search_range"] = {m.minN, m.maxN};
+    report["kd_map"] = {{"exr", "kd.exr"},
+                        {"png", "kd.png"},
+                        {"fitted_pixels", m.pixelsFitted},
+                        {"kd_plus_ks_above_1", m.kdAboveOne}};
+    report["units"] =
+        "kd and ks in the units of the images divided by the light intensities (relative if "
+        "the intensities are); n is absolute; no energy bound is imposed";
+    report["rmse"] = m.rmse;
+    report["lambertian_rmse"] = m.lambertianRmse;
+    report["time_seconds"] = m.seconds;
+    report["evaluations"] = m.evaluations;
+    describeCapture(run, inputs, fit.model, report);
+    report["model"] = modelJson("per-pixel", {"diffuse (per pixel)", "specular (shared)"},
+                                {"diffuse (per pixel)"}, inputs, "l2");
+    report["model"]["min_pairs_per_pixel"] = AlbedoMapOptions{}.minPairs;
+    report["pixels"] = {{"used", m.pixelsFitted},
+                        {"bad_normals", run.capture.badNormals},
+                        {"too_few_pairs", m.pixelsTooFewPairs}};
+    report["holdout"] = fit.holdout ? holdoutJson(run.capture, *fit.holdout, *fit.heldOut)
+                                    : nlohmann::json(nullptr);
+    const auto rows = [&](const CaptureModel& shown, std::size_t view) {
+        const auto predict = [&shown, view, &m](bool lobe) -> RowPrediction {
+            return [&shown, view, &m, lobe](std::size_t k) -> Color3 {
+                const std::uint32_t p = shown.entries[view][k];
+                const double cosine = shown.paths[view].terms[k].constant[0];
+                if (!lobe) return m.lambertianKd[p] * cosine * kInvPi;
+                return predictAlbedoMap(m, p, cosine, shown.paths[view].vertices[k].logCos);
+            };
+        };
+        return std::vector<RowPrediction>{predict(true), predict(false)};
+    };
+    const cv::Mat compare = compareTypicalLight(run, fit.model, fit.heldOut, fit.holdout, rows,
+                                                {"phong", "lambertian per pixel"}, report);
+    writeAlbedoMap(run.capture, m.kd, out);
+    writeReport(out, report, compare);
 }
 
 }  // namespace
@@ -142,75 +311,25 @@ CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet) {
     run.heldOutImages.assign(run.images.begin() + std::ptrdiff_t(run.lights.size()),
                              run.images.end());
     run.images.resize(run.lights.size());
-    run.fit = fitCapture(run.capture, run.images, run.heldOutImages, inputs.fit);
+    if (inputs.perPixelAlbedo) {
+        AlbedoMapOptions options;
+        options.grey = inputs.fit.fit.grey;
+        options.threads = inputs.fit.fit.threads;
+        run.albedoMap = fitCaptureAlbedoMap(run.capture, run.images, run.heldOutImages,
+                                            inputs.fit.minCos, options);
+    } else {
+        run.fit = fitCapture(run.capture, run.images, run.heldOutImages, inputs.fit);
+    }
     return run;
 }
 
 void writeCaptureFit(const CaptureRun& run, const CaptureFitInputs& inputs, const std::string& loss,
                      const std::string& dir) {
-    const Capture& capture = run.capture;
-    const CaptureFit& fit = run.fit;
-    std::vector<PhongMaterial> rows = {fit.phong.materials[0].material()};
-    if (fit.lambertian) rows.push_back(fit.lambertian->materials[0].material());
-    nlohmann::json report = toJson(fit.phong, {"capture"});
-    report["capture"] = {{"dir", inputs.dir},
-                         {"mask", capture.maskPath},
-                         {"normals", capture.normalsPath},
-                         {"mask_pixels", capture.pixels.size()},
-                         {"lights", lightNumbers(capture, run.lights)},
-                         {"holdout_lights", lightNumbers(capture, run.holdout)}};
-    report["model"] = {{"kind", "direct light on known normals"},
-                       {"view", "orthographic, direction (0, 0, 1) in the camera frame"},
-                       {"lights", "directional; each image divided by its light's intensity"},
-                       {"lobes", {"diffuse", "specular"}},
-                       {"lambertian_lobes", {"diffuse"}},
-                       {"bounces", 1},
-                       {"max_depth", 2},
-                       {"min_cos", inputs.fit.minCos},
-                       {"loss", loss}};
-    report["left_out"] = {
-        "path tracing: no rays are traced; each (pixel, light) pair is the light's direct "
-        "reflection on the known normal",
-        "indirect light and interreflection: one bounce (depth 1; Mitsuba maxDepth 2)",
-        "cast shadows: the surface is assumed unoccluded; pairs with n.l below min_cos are left "
-        "out instead",
-        "clipped and non-finite pixels",
-        "mask pixels whose normal is zero, not unit or not finite (pixels.bad_normals)"};
-    report["start"] = {{"kd", rgb(fit.start.kd)}, {"ks", rgb(fit.start.ks)}, {"n", fit.start.n}};
-    report["pairs"] = {
-        {"total", fit.model.pairs}, {"used", fit.model.used}, {"left_out", fit.model.leftOut}};
-    report["decoding"] = run.images.front().decoding;
-    report["pixels"] = {{"used", capture.pixels.size()}, {"bad_normals", capture.badNormals}};
-    // The Lambertian-only fit, reported as the Phong fit is (its ks and n are unconstrained).
-    report["lambertian"] =
-        fit.lambertian ? toJson(*fit.lambertian, {"capture"}) : nlohmann::json(nullptr);
-    report["holdout"] = fit.holdout ? holdoutJson(capture, fit) : nlohmann::json(nullptr);
-
-    // compare.png shows a typical held-out light, or without a hold-out the middle fitted one.
-    const CaptureModel& shown = fit.heldOut ? *fit.heldOut : fit.model;
-    const std::size_t view = fit.holdout ? medianView(*fit.holdout) : shown.lights.size() / 2;
-    const std::vector<CaptureImage>& shownImages = fit.heldOut ? run.heldOutImages : run.images;
-    const CaptureImage& shownImage =
-        *std::find_if(shownImages.begin(), shownImages.end(),
-                      [&](const CaptureImage& i) { return i.light == shown.lights[view]; });
-    const CaptureLight& shownLight = capture.lights[shown.lights[view]];
-    report["compare"] = {{"light", shownLight.number},
-                         {"image", shownLight.imagePath},
-                         {"held_out", fit.heldOut.has_value()},
-                         {"rows", fit.lambertian ? nlohmann::json({"phong", "lambertian"})
-                                                 : nlohmann::json({"phong"})},
-                         {"columns", {"observed", "predicted", "signed error"}}};
-    const cv::Mat compare = comparison(capture, shownImage, shown, view, rows);
-
     fs::create_directories(dir);
-    const fs::path out(dir);
-    writeAtomically(out / "fit.json", [&](const fs::path& tmp) {
-        std::ofstream file(tmp);
-        file << report.dump(2) << "\n";
-        file.close();
-        if (!file) throw Error(fmt::format("{}: could not be written", tmp.string()));
-    });
-    writePng(compare, (out / "compare.png").string());
+    if (run.albedoMap)
+        writeAlbedoMapFit(run, inputs, dir);
+    else
+        writeUniformFit(run, inputs, loss, dir);
 }
 
 }  // namespace phongfit

@@ -2,9 +2,11 @@
 // `fit --capture`, in typed steps: read and fit, then write fit.json and compare.png.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "albedo_map_fit.h"
 #include "capture.h"
 #include "capture_fit.h"
 #include "fitter.h"
@@ -17,19 +19,24 @@ struct CaptureFitInputs {
     std::string lights, holdout;
     CaptureReadOptions read;
     CaptureFitOptions fit;
+    bool perPixelAlbedo = false;  // --albedo per-pixel: albedo_map_fit.h instead of one kd
 };
 
 struct CaptureRun {
     Capture capture;
     std::vector<int> lights, holdout;  // indices into capture.lights
     std::vector<CaptureImage> images, heldOutImages;
-    CaptureFit fit;
+    // One of the two: one material (fitCapture) or an albedo map (fitCaptureAlbedoMap).
+    std::optional<CaptureFit> fit;
+    std::optional<AlbedoMapCaptureFit> albedoMap;
 };
 
-// Reads and checks the capture and its images, then fits (fitCapture). Throws Error on bad input.
+// Reads and checks the capture and its images, then fits (fitCapture or fitCaptureAlbedoMap).
+// Throws Error on bad input.
 CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet);
 
-// DIR/fit.json and DIR/compare.png (a typical held-out light, or the middle fitted one); DIR is
+// DIR/fit.json and DIR/compare.png (a typical held-out light, or the middle fitted one), and with
+// an albedo map DIR/kd.exr (linear, 0 outside the fitted pixels) and DIR/kd.png (a preview); DIR is
 // created. `loss` is the loss' name as fit.json records it.
 void writeCaptureFit(const CaptureRun& run, const CaptureFitInputs& inputs, const std::string& loss,
                      const std::string& dir);

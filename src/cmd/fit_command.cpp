@@ -39,7 +39,7 @@ struct FitCli {
     bool fitExposure = false, ignoreNonFinite = false;
     std::uint64_t seed = 0;
     // Capture fits.
-    std::string capture, lights, holdout;
+    std::string capture, lights, holdout, albedo = "uniform";
     double minCos = 0.05;
 };
 
@@ -99,6 +99,78 @@ void runSceneFit(const FitCli& a) {
     printSceneFit(problem, result, a.grey, a.output);
 }
 
+void printLeftOut(const CaptureRun& run, const CaptureModel& model) {
+    fmt::print(
+        "left out {} pairs ({} below --min-cos, {} clipped, {} not finite, {} facing away)\n",
+        model.pairs - model.used, model.leftOut.at("below_min_cos"), model.leftOut.at("clipped"),
+        model.leftOut.at("non_finite"), model.leftOut.at("facing_away"));
+    fmt::print("photographs: {}\n", run.images.front().decoding);
+    if (run.capture.badNormals > 0)
+        fmt::print("left out {} pixel{} of the mask whose normal is zero, not unit or not finite\n",
+                   run.capture.badNormals, run.capture.badNormals == 1 ? "" : "s");
+}
+
+void printHoldout(const CaptureRun& run, const HoldoutPrediction& holdout,
+                  const std::string& baseline) {
+    fmt::print(
+        "held out {} lights ({} pairs): rmse {:.5g} (relative {:.3g}), {} {:.5g} (relative "
+        "{:.3g})\n",
+        run.holdout.size(), holdout.phong.pairs, holdout.phong.rmse, holdout.phong.relRmse,
+        baseline, holdout.lambertian.rmse, holdout.lambertian.relRmse);
+}
+
+void printUniformFit(const FitCli& a, const CaptureRun& run) {
+    const CaptureFit& fit = *run.fit;
+    const MaterialFit& m = fit.phong.materials[0];
+    fmt::print("capture: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n",
+               formatColor(m.kd, m.kdStd, a.grey), formatColor(m.ks, m.ksStd, a.grey), m.n, m.nStd,
+               m.unconstrained.empty() ? ""
+                                       : fmt::format("  (unconstrained, held at start: {})",
+                                                     fmt::join(m.unconstrained, ", ")));
+    fmt::print("fitted {} pairs of {} lights: rmse {:.5g}; ", fit.model.used, run.lights.size(),
+               fit.phong.rmse);
+    printLeftOut(run, fit.model);
+    double seconds = fit.phong.timeSeconds;
+    if (fit.holdout) {
+        const MaterialFit& lam = fit.lambertian->materials[0];
+        fmt::print("lambertian only: kd = {}\n", formatColor(lam.kd, lam.kdStd, a.grey));
+        printHoldout(run, *fit.holdout, "Lambertian only");
+        seconds += fit.lambertian->timeSeconds;
+    }
+    fmt::print(
+        "{} in {:.2f} s; left out: path tracing and indirect light (direct light on known "
+        "normals, one bounce) -> {}\n",
+        fit.phong.converged ? "converged" : "not converged", seconds,
+        (std::filesystem::path(a.output) / "fit.json").string());
+}
+
+void printAlbedoMapFit(const FitCli& a, const CaptureRun& run) {
+    const AlbedoMapCaptureFit& fit = *run.albedoMap;
+    const AlbedoMapFit& m = fit.fit;
+    const std::string n = std::isfinite(m.nStd) ? fmt::format("{:.5g} ± {:.2g}", m.n, m.nStd)
+                                                : fmt::format("{:.5g}", m.n);
+    fmt::print(
+        "capture, per-pixel albedo: ks = {}, n = {}{}{}\n", formatColor(m.ks, m.ksStd, a.grey), n,
+        m.unconstrained.empty()
+            ? ""
+            : fmt::format("  (unconstrained: {})", fmt::join(m.unconstrained, ", ")),
+        m.nAtBound ? fmt::format("  (at the end of the searched range {:g}-{:g})", m.minN, m.maxN)
+                   : "");
+    fmt::print("kd map of {} pixels -> {}; {} pixel{} left out with fewer than {} usable pairs\n",
+               m.pixelsFitted, (std::filesystem::path(a.output) / "kd.exr").string(),
+               m.pixelsTooFewPairs, m.pixelsTooFewPairs == 1 ? "" : "s",
+               AlbedoMapOptions{}.minPairs);
+    fmt::print("fitted {} pairs of {} lights: rmse {:.5g} (per-pixel Lambertian {:.5g}); ", m.pairs,
+               run.lights.size(), m.rmse, m.lambertianRmse);
+    printLeftOut(run, fit.model);
+    if (fit.holdout) printHoldout(run, *fit.holdout, "per-pixel Lambertian");
+    fmt::print(
+        "kd and ks are in the images' units divided by the light intensities (relative if they "
+        "are), n is absolute; {} in {:.2f} s -> {}\n",
+        m.unconstrained.empty() ? "converged" : "not converged", m.seconds,
+        (std::filesystem::path(a.output) / "fit.json").string());
+}
+
 void runCaptureFitCommand(const FitCli& a) {
     requireOutputDirectory(a.output);
     CaptureFitInputs in;
@@ -107,6 +179,10 @@ void runCaptureFitCommand(const FitCli& a) {
     in.holdout = a.holdout;
     in.fit.minCos = a.minCos;
     in.fit.fit = fitOptions(a);
+    in.perPixelAlbedo = a.albedo == "per-pixel";
+    if (in.perPixelAlbedo && a.loss != "l2")
+        throw Error(
+            fmt::format("--loss {}: --albedo per-pixel fits least squares (l2) only", a.loss));
     in.read.decoding = decoding(a);
     if (a.saturation && !(*a.saturation > 0 && std::isfinite(*a.saturation)))
         throw Error(fmt::format("--saturation {}: must be a finite number > 0", *a.saturation));
@@ -114,41 +190,10 @@ void runCaptureFitCommand(const FitCli& a) {
     in.read.mask = a.mask;
     const CaptureRun run = runCaptureFit(in, a.quiet);
     writeCaptureFit(run, in, a.loss, a.output);
-
-    const CaptureFit& fit = run.fit;
-    const MaterialFit& m = fit.phong.materials[0];
-    fmt::print("capture: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n",
-               formatColor(m.kd, m.kdStd, a.grey), formatColor(m.ks, m.ksStd, a.grey), m.n, m.nStd,
-               m.unconstrained.empty() ? ""
-                                       : fmt::format("  (unconstrained, held at start: {})",
-                                                     fmt::join(m.unconstrained, ", ")));
-    fmt::print(
-        "fitted {} pairs of {} lights: rmse {:.5g}; left out {} pairs ({} below "
-        "--min-cos, {} clipped, {} not finite, {} facing away)\n",
-        fit.model.used, run.lights.size(), fit.phong.rmse, fit.model.pairs - fit.model.used,
-        fit.model.leftOut.at("below_min_cos"), fit.model.leftOut.at("clipped"),
-        fit.model.leftOut.at("non_finite"), fit.model.leftOut.at("facing_away"));
-    fmt::print("photographs: {}\n", run.images.front().decoding);
-    if (run.capture.badNormals > 0)
-        fmt::print("left out {} pixel{} of the mask whose normal is zero, not unit or not finite\n",
-                   run.capture.badNormals, run.capture.badNormals == 1 ? "" : "s");
-    double seconds = fit.phong.timeSeconds;
-    if (fit.holdout) {
-        const MaterialFit& lam = fit.lambertian->materials[0];
-        fmt::print("lambertian only: kd = {}\n", formatColor(lam.kd, lam.kdStd, a.grey));
-        fmt::print(
-            "held out {} lights ({} pairs): rmse {:.5g} (relative {:.3g}), Lambertian "
-            "only {:.5g} (relative {:.3g})\n",
-            run.holdout.size(), fit.holdout->phong.pairs, fit.holdout->phong.rmse,
-            fit.holdout->phong.relRmse, fit.holdout->lambertian.rmse,
-            fit.holdout->lambertian.relRmse);
-        seconds += fit.lambertian->timeSeconds;
-    }
-    fmt::print(
-        "{} in {:.2f} s; left out: path tracing and indirect light (direct light on known "
-        "normals, one bounce) -> {}\n",
-        fit.phong.converged ? "converged" : "not converged", seconds,
-        (std::filesystem::path(a.output) / "fit.json").string());
+    if (run.albedoMap)
+        printAlbedoMapFit(a, run);
+    else
+        printUniformFit(a, run);
 }
 
 // Throws Error naming the first option of `group` that was given.
@@ -226,6 +271,12 @@ void addFitCommand(CLI::App& app) {
     capture->add_option("--lights", a->lights,
                         "lights to fit, e.g. 1-48 or 1-10,20 (default: all not held out)");
     capture->add_option("--holdout", a->holdout, "lights to predict and not fit, e.g. 49-96");
+    capture
+        ->add_option("--albedo", a->albedo,
+                     "uniform: one kd for the object; per-pixel: a kd per mask pixel (a "
+                     "textured object) with one shared ks and n, written to kd.exr")
+        ->check(CLI::IsMember({"uniform", "per-pixel"}))
+        ->capture_default_str();
     capture->add_option("--min-cos", a->minCos,
                         "leave out pairs with n.l below this (shadows, grazing light; default "
                         "0.05)");

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "image.h"
 #include "subprocess.h"
 #include "synthetic_capture.h"
 #include "temp_dir.h"
@@ -63,6 +64,43 @@ TEST_F(CaptureCommand, WritesReportAndComparison) {
     EXPECT_LE(compare.cols, 3 * Synthetic::kSize);
 }
 
+// --albedo per-pixel: a kd per mask pixel (kd.exr, kd.png), one ks and n, the held-out lights
+// against the per-pixel Lambertian baseline.
+TEST_F(CaptureCommand, PerPixelAlbedoWritesTheMapAndTheHoldoutComparison) {
+    const auto r = run({"fit", "--capture", dir_.path().string(), "--albedo", "per-pixel",
+                        "--holdout", "21-30", "--threads", "2", "-o", out("map"), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("capture, per-pixel albedo: ks = "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("per-pixel Lambertian"), std::string::npos) << r.out;
+
+    const auto report = nlohmann::json::parse(std::ifstream(out("map/fit.json")));
+    EXPECT_EQ(report["albedo"], "per-pixel");
+    EXPECT_EQ(report["model"]["albedo"], "per-pixel");
+    const Synthetic truth;
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(report["ks"][c].get<double>(), truth.truth.ks[c], 0.05 * truth.truth.ks[c]);
+    EXPECT_NEAR(report["n"].get<double>(), truth.truth.n, 0.1 * truth.truth.n);
+    EXPECT_GT(report["n_std"].get<double>(), 0);
+    EXPECT_EQ(report["unconstrained"].size(), 0u);
+    const int fitted = report["kd_map"]["fitted_pixels"].get<int>();
+    EXPECT_EQ(fitted + report["pixels"]["too_few_pairs"].get<int>(),
+              report["capture"]["mask_pixels"].get<int>());
+    const auto& h = report["holdout"];
+    ASSERT_EQ(h["per_light"].size(), 10u);
+    EXPECT_LT(h["rmse"].get<double>(), h["lambertian_rmse"].get<double>());
+    EXPECT_EQ(report["compare"]["rows"], nlohmann::json({"phong", "lambertian per pixel"}));
+
+    // The map: the truth's kd at the centre of the sphere, black outside the mask.
+    const Image kd = readImage(out("map/kd.exr"));
+    ASSERT_EQ(kd.width, Synthetic::kSize);
+    ASSERT_EQ(kd.height, Synthetic::kSize);
+    const Color<float> centre = kd.at(Synthetic::kSize / 2, Synthetic::kSize / 2);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(centre[c], truth.truth.kd[c], 0.02) << c;
+    EXPECT_TRUE((kd.at(0, 0) == 0).all());
+    EXPECT_FALSE(cv::imread(out("map/kd.png")).empty());
+    EXPECT_FALSE(cv::imread(out("map/compare.png")).empty());
+}
+
 // DiLiGenT's pot2 (the public 8-bit linear crop) has 73 zero normals inside its mask: they are
 // left out and counted, and the rest is fitted.
 TEST_F(CaptureCommand, RealCaptureWithZeroNormalsIsFittedWithThemCounted) {
@@ -106,6 +144,10 @@ TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         {{"--capture", out("nowhere")}, "nowhere': no such folder"},
         {{"--capture", dir, "--view", "a.xml:b.exr"}, "exactly one of --view"},
         {{}, "exactly one of --view"},
+        {{"--capture", dir, "--albedo", "per-pixel", "--loss", "huber"},
+         "--albedo per-pixel fits least squares"},
+        {{"--capture", dir, "--albedo", "texture"}, "--albedo"},
+        {{"--view", "a.xml:b.exr", "--albedo", "per-pixel"}, "--albedo applies to --capture"},
     };
     for (const Case& c : cases) {
         std::vector<std::string> args = {"fit"};

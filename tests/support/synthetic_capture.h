@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <string>
@@ -23,6 +24,9 @@ struct Synthetic {
     static constexpr int kLights = 30;
     static constexpr double kNoise = 0.002;  // in 16-bit linear units, before quantisation
     PhongMaterial truth;
+    // If set, the diffuse albedo at pixel (x, y) instead of truth.kd: a textured object.
+    std::function<Color3(int x, int y)> albedo;
+    int lights = kLights;  // DiLiGenT has 96
 
     Synthetic() {
         truth.kd = Color3(0.4, 0.3, 0.2);
@@ -30,10 +34,10 @@ struct Synthetic {
         truth.n = 60;
     }
 
-    static Vec3d lightDirection(int i) {
+    static Vec3d lightDirection(int i, int count = kLights) {
         // Rings of lights at 10 to 50 degrees from the view, as in a photometric-stereo dome.
         const double theta = (10 + 40 * double(i % 5) / 4) * kPi / 180;
-        const double phi = 2 * kPi * i / kLights + i % 5;
+        const double phi = 2 * kPi * i / count + i % 5;
         return Vec3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
                      std::cos(theta));
     }
@@ -62,8 +66,8 @@ struct Synthetic {
         cv::imwrite((dir / "mask.png").string(), mask);
         std::ofstream names(dir / "filenames.txt"), directions(dir / "light_directions.txt"),
             intensities(dir / "light_intensities.txt");
-        for (int i = 0; i < kLights; ++i) {
-            const Vec3d l = lightDirection(i);
+        for (int i = 0; i < lights; ++i) {
+            const Vec3d l = lightDirection(i, lights);
             const Color3 e(intensity(rng), intensity(rng), intensity(rng));
             const std::string name = fmt::format("{:03d}.png", i + 1);
             names << name << "\n";
@@ -76,7 +80,9 @@ struct Synthetic {
                     if (!n) continue;
                     const Frame<double> frame(*n);
                     const Vec3d wi = frame.toLocal(l), wo = frame.toLocal(Vec3d(0, 0, 1));
-                    const Color3 f = phongEval(truth, wi, wo);
+                    PhongMaterial m = truth;
+                    if (albedo) m.kd = albedo(x, y);
+                    const Color3 f = phongEval(m, wi, wo);
                     for (int c = 0; c < 3; ++c) {
                         const double v = e[c] * std::max(wi.z(), 0.0) * f[c] + noise(rng);
                         image.at<cv::Vec3w>(y, x)[2 - c] =

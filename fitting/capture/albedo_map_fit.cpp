@@ -1,0 +1,342 @@
+#include "albedo_map_fit.h"
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include "error.h"
+#include "grid_search.h"
+#include "phong_brdf.h"
+
+namespace phongfit {
+namespace {
+
+// The exponent is searched over log2 n in [kMinLog2N, kMaxLog2N]: a grid, then golden section
+// around its best point until log2 n is bracketed within kLog2NTolerance.
+constexpr double kMinLog2N = 0, kMaxLog2N = 20;
+constexpr double kGridStep = 0.5;
+constexpr double kLog2NTolerance = 1e-4;
+// The active set of kd_p = 0 settles in a few passes; this bounds a pathological case.
+constexpr int kMaxActiveSetPasses = 100;
+// A channel's lobe is seen when its ks is this many standard errors above zero.
+constexpr double kLobeSigmas = 3;
+
+struct Pair {
+    float cosine, logCos;
+    Color<float> observed;
+};
+
+// The pairs grouped by fitted pixel.
+struct PixelPairs {
+    std::vector<std::uint32_t> pixel;  // mask pixel index of each fitted pixel
+    std::vector<std::size_t> start;    // pairs of fitted pixel i: [start[i], start[i + 1])
+    std::vector<Pair> pairs;
+};
+
+PixelPairs groupByPixel(const CaptureModel& model, std::size_t maskPixels, int minPairs,
+                        std::vector<std::uint8_t>& fitted) {
+    std::vector<std::size_t> count(maskPixels, 0);
+    for (const auto& entries : model.entries)
+        for (std::uint32_t p : entries) ++count[p];
+    PixelPairs out;
+    std::vector<std::size_t> at(maskPixels, 0);
+    fitted.assign(maskPixels, 0);
+    out.start.push_back(0);
+    for (std::size_t p = 0; p < maskPixels; ++p) {
+        if (count[p] < std::size_t(minPairs)) continue;
+        fitted[p] = 1;
+        at[p] = out.start.back();
+        out.pixel.push_back(std::uint32_t(p));
+        out.start.push_back(out.start.back() + count[p]);
+    }
+    out.pairs.resize(out.start.back());
+    for (std::size_t v = 0; v < model.entries.size(); ++v) {
+        const PathSet& ps = model.paths[v];
+        const std::vector<float>& rgb = model.observations[v].rgb;
+        for (std::size_t k = 0; k < model.entries[v].size(); ++k) {
+            const std::uint32_t p = model.entries[v][k];
+            if (!fitted[p]) continue;
+            out.pairs[at[p]++] = {ps.terms[k].constant[0], ps.vertices[k].logCos,
+                                  Color<float>(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2])};
+        }
+    }
+    return out;
+}
+
+// The model's two basis functions of a pair at exponent n: I = kd a + ks b.
+double diffuseBasis(double cosine) { return cosine * kInvPi; }
+double lobeBasis(double cosine, double logCos, double n) {
+    return cosine * (n + 2) * (0.5 * kInvPi) * phongPower(n, logCos);
+}
+// d b / d n.
+double lobeSlope(double cosine, double logCos, double n) {
+    if (logCos == -std::numeric_limits<float>::infinity()) return 0;
+    return cosine * (0.5 * kInvPi) * phongPower(n, logCos) * (1 + (n + 2) * double(logCos));
+}
+
+// Sums over one pixel's pairs that do not depend on n.
+struct FixedSums {
+    double aa = 0;
+    Color3 aI = Color3::Zero(), II = Color3::Zero();
+};
+// Sums over one pixel's pairs at one n.
+struct LobeSums {
+    double ab = 0, bb = 0;
+    Color3 bI = Color3::Zero();
+};
+
+struct Solution {
+    Color3 ks = Color3::Zero();
+    std::vector<Color3> kd;  // per fitted pixel
+    double sse = 0;
+};
+
+class Solver {
+public:
+    Solver(const PixelPairs& pixels, bool grey) : pixels_(pixels), grey_(grey) {
+        fixed_.resize(pixels.pixel.size());
+        tbb::parallel_for(std::size_t(0), fixed_.size(), [&](std::size_t i) {
+            FixedSums& s = fixed_[i];
+            for (std::size_t k = pixels.start[i]; k < pixels.start[i + 1]; ++k) {
+                const Pair& pair = pixels.pairs[k];
+                const double a = diffuseBasis(pair.cosine);
+                const Color3 observed = pair.observed.cast<double>();
+                s.aa += a * a;
+                s.aI += a * observed;
+                s.II += observed.square();
+            }
+        });
+    }
+
+    // The best kd_p >= 0 and ks >= 0 at exponent n (without the lobe: kd_p alone).
+    Solution solve(double n, bool lobe) {
+        const std::size_t count = fixed_.size();
+        std::vector<LobeSums> lobeSums(count);
+        if (lobe)
+            tbb::parallel_for(std::size_t(0), count, [&](std::size_t i) {
+                LobeSums& s = lobeSums[i];
+                for (std::size_t k = pixels_.start[i]; k < pixels_.start[i + 1]; ++k) {
+                    const Pair& pair = pixels_.pairs[k];
+                    const double a = diffuseBasis(pair.cosine);
+                    const double b = lobeBasis(pair.cosine, pair.logCos, n);
+                    s.ab += a * b;
+                    s.bb += b * b;
+                    s.bI += b * pair.observed.cast<double>();
+                }
+            });
+        Solution out;
+        out.ks = lobe ? sharedKs(lobeSums) : Color3::Zero();
+        out.kd.resize(count);
+        for (std::size_t i = 0; i < count; ++i) {
+            const FixedSums& f = fixed_[i];
+            const LobeSums& l = lobeSums[i];
+            const Color3 kd = ((f.aI - out.ks * l.ab) / f.aa).max(0.0);
+            out.kd[i] = kd;
+            out.sse += (f.II - 2 * kd * f.aI - 2 * out.ks * l.bI + kd.square() * f.aa +
+                        2 * kd * out.ks * l.ab + out.ks.square() * l.bb)
+                           .sum();
+        }
+        return out;
+    }
+
+    const FixedSums& fixed(std::size_t i) const { return fixed_[i]; }
+
+private:
+    // ks given that each free kd_p takes its best value; pixels whose kd_p would be negative are
+    // held at kd_p = 0 (the active set), until the set no longer changes.
+    Color3 sharedKs(const std::vector<LobeSums>& sums) const {
+        const std::size_t count = sums.size();
+        std::vector<std::array<bool, 3>> held(count, {false, false, false});
+        Color3 ks = Color3::Zero();
+        for (int pass = 0; pass < kMaxActiveSetPasses; ++pass) {
+            Color3 num = Color3::Zero(), den = Color3::Zero();
+            for (std::size_t i = 0; i < count; ++i)
+                for (int c = 0; c < 3; ++c) {
+                    const FixedSums& f = fixed_[i];
+                    const LobeSums& l = sums[i];
+                    num[c] += held[i][c] ? l.bI[c] : l.bI[c] - l.ab * f.aI[c] / f.aa;
+                    den[c] += held[i][c] ? l.bb : l.bb - l.ab * l.ab / f.aa;
+                }
+            if (grey_) num.setConstant(num.sum()), den.setConstant(den.sum());
+            for (int c = 0; c < 3; ++c) ks[c] = den[c] > 0 ? std::max(num[c] / den[c], 0.0) : 0;
+            bool changed = false;
+            for (std::size_t i = 0; i < count; ++i)
+                for (int c = 0; c < 3; ++c) {
+                    const bool negative = fixed_[i].aI[c] - ks[c] * sums[i].ab < 0;
+                    changed |= negative != held[i][c];
+                    held[i][c] = negative;
+                }
+            if (!changed) break;
+        }
+        return ks;
+    }
+
+    const PixelPairs& pixels_;
+    bool grey_;
+    std::vector<FixedSums> fixed_;
+};
+
+// The exponent in [2^kMinLog2N, 2^kMaxLog2N] with the smallest residual.
+double bestExponent(Solver& solver, int& evaluations) {
+    const auto sse = [&](double log2n) {
+        ++evaluations;
+        return solver.solve(std::exp2(log2n), true).sse;
+    };
+    return std::exp2(gridThenGoldenMinimum(sse, kMinLog2N, kMaxLog2N, kGridStep, kLog2NTolerance));
+}
+
+// Standard errors of ks and n from the Gauss-Newton information with the free kd_p eliminated
+// (Schur complement); sigma^2 from the residual. Parameters at a bound (ks = 0, kd_p = 0) are held.
+void standardErrors(const PixelPairs& pixels, const Solver& solver, const Solution& s, double n,
+                    bool grey, std::size_t values, AlbedoMapFit& out) {
+    // Parameters: ks per channel (or one), then n.
+    const int ksCount = grey ? 1 : 3, nIndex = ksCount;
+    const auto ksIndex = [&](int c) { return grey ? 0 : c; };
+    Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
+    std::size_t freeKd = 0;
+    for (std::size_t i = 0; i < pixels.pixel.size(); ++i) {
+        double ab = 0, ad = 0, bb = 0, bd = 0, dd = 0;
+        for (std::size_t k = pixels.start[i]; k < pixels.start[i + 1]; ++k) {
+            const Pair& pair = pixels.pairs[k];
+            const double a = diffuseBasis(pair.cosine);
+            const double b = lobeBasis(pair.cosine, pair.logCos, n);
+            const double d = lobeSlope(pair.cosine, pair.logCos, n);
+            ab += a * b, ad += a * d, bb += b * b, bd += b * d, dd += d * d;
+        }
+        const double aa = solver.fixed(i).aa;
+        for (int c = 0; c < 3; ++c) {
+            const double ks = s.ks[c];
+            const int j = ksIndex(c);
+            info(j, j) += bb;
+            info(j, nIndex) += ks * bd;
+            info(nIndex, j) += ks * bd;
+            info(nIndex, nIndex) += ks * ks * dd;
+            if (s.kd[i][c] > 0) {  // free: eliminate it
+                ++freeKd;
+                const Eigen::Vector2d v(ab, ks * ad);
+                info(j, j) -= v[0] * v[0] / aa;
+                info(j, nIndex) -= v[0] * v[1] / aa;
+                info(nIndex, j) -= v[0] * v[1] / aa;
+                info(nIndex, nIndex) -= v[1] * v[1] / aa;
+            }
+        }
+    }
+    // Held parameters (ks at 0; n without any lobe) leave the system.
+    std::vector<int> free;
+    for (int c = 0; c < ksCount; ++c)
+        if (s.ks[grey ? 0 : c] > 0) free.push_back(c);
+    const bool lobe = !free.empty();
+    if (lobe) free.push_back(nIndex);
+    const double dof = double(values) - double(freeKd) - double(free.size());
+    const double sigma2 = dof > 0 ? s.sse / dof : std::numeric_limits<double>::infinity();
+    Eigen::MatrixXd reduced(free.size(), free.size());
+    for (std::size_t r = 0; r < free.size(); ++r)
+        for (std::size_t c = 0; c < free.size(); ++c) reduced(r, c) = info(free[r], free[c]);
+    const Eigen::MatrixXd cov = sigma2 * reduced.inverse();
+    const auto stdOf = [&](int param) {
+        const auto at = std::find(free.begin(), free.end(), param);
+        if (at == free.end()) return std::numeric_limits<double>::infinity();
+        const double var = cov(at - free.begin(), at - free.begin());
+        return var >= 0 ? std::sqrt(var) : std::numeric_limits<double>::infinity();
+    };
+    for (int c = 0; c < 3; ++c) out.ksStd[c] = s.ks[c] > 0 ? stdOf(ksIndex(c)) : 0.0;
+    out.nStd = lobe ? stdOf(nIndex) : std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < pixels.pixel.size(); ++i)
+        for (int c = 0; c < 3; ++c)
+            out.kdStd[pixels.pixel[i]][c] = std::sqrt(sigma2 / solver.fixed(i).aa);
+}
+
+}  // namespace
+
+AlbedoMapFit fitAlbedoMap(const Capture& capture, const CaptureModel& model,
+                          const AlbedoMapOptions& options) {
+    const auto started = std::chrono::steady_clock::now();
+    std::unique_ptr<tbb::global_control> threads;
+    if (options.threads > 0)
+        threads = std::make_unique<tbb::global_control>(
+            tbb::global_control::max_allowed_parallelism, std::size_t(options.threads));
+    AlbedoMapFit out;
+    const std::size_t maskPixels = capture.pixels.size();
+    const PixelPairs pixels = groupByPixel(model, maskPixels, options.minPairs, out.fitted);
+    out.pixelsFitted = pixels.pixel.size();
+    out.pixelsTooFewPairs = maskPixels - out.pixelsFitted;
+    if (out.pixelsFitted == 0)
+        throw Error(fmt::format(
+            "capture '{}': no mask pixel has {} usable pairs, the least a per-pixel albedo needs",
+            capture.dir, options.minPairs));
+    out.pairs = pixels.pairs.size();
+    out.minN = std::exp2(kMinLog2N);
+    out.maxN = std::exp2(kMaxLog2N);
+
+    Solver solver(pixels, options.grey);
+    out.n = bestExponent(solver, out.evaluations);
+    out.nAtBound = std::log2(out.n) < kMinLog2N + 2 * kGridStep ||
+                   std::log2(out.n) > kMaxLog2N - 2 * kGridStep;
+    const Solution phong = solver.solve(out.n, true);
+    const Solution lambertian = solver.solve(out.n, false);
+    out.ks = phong.ks;
+    out.kd.assign(maskPixels, Color3::Zero());
+    out.kdStd.assign(maskPixels, Color3::Zero());
+    out.lambertianKd.assign(maskPixels, Color3::Zero());
+    for (std::size_t i = 0; i < pixels.pixel.size(); ++i) {
+        out.kd[pixels.pixel[i]] = phong.kd[i];
+        out.lambertianKd[pixels.pixel[i]] = lambertian.kd[i];
+        if ((phong.kd[i] + phong.ks > 1).any()) ++out.kdAboveOne;
+    }
+    const std::size_t values = 3 * pixels.pairs.size();
+    out.rmse = std::sqrt(std::max(phong.sse, 0.0) / double(values));
+    out.lambertianRmse = std::sqrt(std::max(lambertian.sse, 0.0) / double(values));
+    standardErrors(pixels, solver, phong, out.n, options.grey, values, out);
+    bool lobe = false;
+    for (int c = 0; c < 3; ++c) lobe |= out.ks[c] > kLobeSigmas * out.ksStd[c];
+    if (!lobe || !std::isfinite(out.nStd)) out.unconstrained.push_back("n");
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    return out;
+}
+
+Color3 predictAlbedoMap(const AlbedoMapFit& fit, std::uint32_t pixel, double cosine,
+                        double logCos) {
+    return fit.kd[pixel] * diffuseBasis(cosine) + fit.ks * lobeBasis(cosine, logCos, fit.n);
+}
+
+HoldoutPrediction predictCapture(const CaptureModel& model, const AlbedoMapFit& fit) {
+    const auto pixel = [&](std::size_t v, std::size_t k) { return model.entries[v][k]; };
+    return predictCapture(
+        model,
+        [&](std::size_t v, std::size_t k) -> std::optional<Color3> {
+            const std::uint32_t p = pixel(v, k);
+            if (!fit.fitted[p]) return std::nullopt;
+            return predictAlbedoMap(fit, p, model.paths[v].terms[k].constant[0],
+                                    model.paths[v].vertices[k].logCos);
+        },
+        [&](std::size_t v, std::size_t k) -> std::optional<Color3> {
+            const std::uint32_t p = pixel(v, k);
+            if (!fit.fitted[p]) return std::nullopt;
+            return fit.lambertianKd[p] * diffuseBasis(model.paths[v].terms[k].constant[0]);
+        });
+}
+
+AlbedoMapCaptureFit fitCaptureAlbedoMap(const Capture& capture,
+                                        const std::vector<CaptureImage>& images,
+                                        const std::vector<CaptureImage>& heldOutImages,
+                                        double minCos, const AlbedoMapOptions& options) {
+    AlbedoMapCaptureFit out;
+    out.model = buildUsableModel(capture, images, minCos, "fitted");
+    if (!heldOutImages.empty())
+        out.heldOut = buildUsableModel(capture, heldOutImages, minCos, "held-out");
+    out.fit = fitAlbedoMap(capture, out.model, options);
+    if (out.heldOut) out.holdout = predictCapture(*out.heldOut, out.fit);
+    return out;
+}
+
+}  // namespace phongfit
