@@ -125,6 +125,37 @@ TEST_F(CaptureTest, SyntheticCaptureIsRecovered) {
               lambertian.unconstrained.end());
 }
 
+// Every light at one unknown intensity (the file says 0.1 for each, the images were taken at 0.3):
+// kd and ks come out three times the truth, beyond kd + ks = 1, and n unchanged. Taken as
+// calibrated, the fit stops on the energy bound and says so.
+TEST(CaptureIntensities, RelativeIntensitiesAreFittedInImageUnitsWithoutEnergyBound) {
+    const test::TempDir dir("capture_relative");
+    Synthetic synth;
+    synth.commonIntensity = 0.3;
+    synth.write(dir.path());
+    const double scale = synth.commonIntensity / Synthetic::kWrittenIntensity;
+    const Capture c = readCapture(dir.path().string());
+    const std::vector<CaptureImage> images = readCaptureImages(c, range(0, 29), {}, 2);
+    CaptureFitOptions options;
+    options.fit.threads = 2;
+    options.relativeIntensities = true;
+    const CaptureFit fit = fitCapture(c, images, {}, options);
+    const MaterialFit& m = fit.phong.materials[0];
+    EXPECT_TRUE(fit.phong.converged);
+    EXPECT_FALSE(fit.energyBoundReached);
+    EXPECT_GT((m.kd + m.ks).maxCoeff(), 1);
+    for (int ch = 0; ch < 3; ++ch) {
+        EXPECT_NEAR(m.kd[ch], scale * synth.truth.kd[ch], 0.02 * scale * synth.truth.kd[ch]);
+        EXPECT_NEAR(m.ks[ch], scale * synth.truth.ks[ch], 0.02 * scale * synth.truth.ks[ch]);
+        EXPECT_LT(std::abs(m.ks[ch] - scale * synth.truth.ks[ch]), 3 * m.ksStd[ch]) << ch;
+    }
+    EXPECT_NEAR(m.n, synth.truth.n, 0.05 * synth.truth.n);
+
+    options.relativeIntensities = false;
+    const CaptureFit calibrated = fitCapture(c, images, {}, options);
+    EXPECT_TRUE(calibrated.energyBoundReached);
+}
+
 TEST_F(CaptureTest, MissingFilesAreNamed) {
     for (const char* name : {"filenames.txt", "light_directions.txt", "light_intensities.txt",
                              "mask.png", "normals.exr", "007.png"}) {

@@ -22,6 +22,10 @@ constexpr std::size_t kScanPairs = 100000;
 constexpr int kScanMaxLog2N = 16;
 // The golden-section search stops when log2 n is bracketed this closely.
 constexpr double kScanTolerance = 0.01;
+// With relative intensities the fit's energy bound lies this many times beyond the scan's kd + ks.
+constexpr double kRelativeHeadroom = 4;
+// kd + ks this close to 1 is on the energy bound.
+constexpr double kAtEnergyBound = 1e-3;
 // Below this ks the start would hide the lobe from the fitter (see startScan).
 constexpr double kMinStartKs = 1e-3;
 
@@ -231,7 +235,7 @@ HoldoutPrediction predictCapture(const CaptureModel& model, const PhongMaterial&
     return predictCapture(model, by(phong), by(lambertian));
 }
 
-PhongMaterial startScan(const CaptureModel& model, bool lobe) {
+PhongMaterial scanReflectances(const CaptureModel& model, bool lobe) {
     const std::vector<ScanSample> samples = scanSamples(model);
     if (samples.empty()) throw Error("the start scan needs at least one (pixel, light) pair");
     if (!lobe) return bestReflectances(samples, std::nullopt).first;
@@ -239,9 +243,15 @@ PhongMaterial startScan(const CaptureModel& model, bool lobe) {
     const double log2n = gridThenGoldenMinimum(
         [&](double e) { return bestReflectances(samples, std::exp2(e)).second; }, 0, kScanMaxLog2N,
         1, kScanTolerance);
-    PhongMaterial start = bestReflectances(samples, std::exp2(log2n)).first;
+    return bestReflectances(samples, std::exp2(log2n)).first;
+}
+
+PhongMaterial startScan(const CaptureModel& model, bool lobe, double scale) {
+    PhongMaterial start = scanReflectances(model, lobe);
+    start.kd /= scale;
+    start.ks /= scale;
     for (int ch = 0; ch < 3; ++ch) {
-        start.ks[ch] = std::clamp(start.ks[ch], kMinStartKs, 1.0);
+        if (lobe) start.ks[ch] = std::clamp(start.ks[ch], kMinStartKs, 1.0);
         start.kd[ch] = std::clamp(start.kd[ch], 0.0, 1.0 - start.ks[ch]);
     }
     return start;
@@ -257,6 +267,23 @@ CaptureModel buildUsableModel(const Capture& capture, const std::vector<CaptureI
     return model;
 }
 
+namespace {
+
+// A fit made on images divided by `scale`, in the images' units.
+void rescale(FitResult& result, double scale) {
+    const auto material = [scale](MaterialFit& m) {
+        m.kd *= scale, m.ks *= scale, m.kdStd *= scale, m.ksStd *= scale;
+    };
+    for (MaterialFit& m : result.materials) material(m);
+    result.rmse *= scale;
+    for (FitRound& round : result.rounds) {
+        for (MaterialFit& m : round.materials) material(m);
+        round.rmse *= scale;
+    }
+}
+
+}  // namespace
+
 CaptureFit fitCapture(const Capture& capture, const std::vector<CaptureImage>& images,
                       const std::vector<CaptureImage>& heldOutImages,
                       const CaptureFitOptions& options) {
@@ -267,15 +294,32 @@ CaptureFit fitCapture(const Capture& capture, const std::vector<CaptureImage>& i
     FitOptions fit = options.fit;
     fit.estimator = Estimator::LeastSquares;
     fit.scanStart = false;  // startScan below, on a subsample
-    const std::vector<Observation>& obs = out.model.observations;
-
     if (!heldOutImages.empty())
         out.heldOut = buildUsableModel(capture, heldOutImages, options.minCos, "held-out");
-    out.start = startScan(out.model, true);
+
+    // Relative intensities: kd and ks are in the images' units, where kd + ks <= 1 means nothing.
+    // The fit runs on images divided by a scale that puts the energy bound far beyond the scan's
+    // estimate, and its results are scaled back.
+    if (options.relativeIntensities) {
+        const PhongMaterial scanned = scanReflectances(out.model, true);
+        out.scale = kRelativeHeadroom * std::max((scanned.kd + scanned.ks).maxCoeff(), 1e-12);
+    }
+    std::vector<Observation> obs = out.model.observations;
+    for (Observation& o : obs)
+        for (float& v : o.rgb) v = float(v / out.scale);
+
+    out.start = startScan(out.model, true, out.scale);
     out.phong = fitPathSets(obs, out.model.paths, out.model.paths, {out.start}, fit);
+    rescale(out.phong, out.scale);
+    out.start.kd *= out.scale, out.start.ks *= out.scale;
+    const MaterialFit& phong = out.phong.materials[0];
+    out.energyBoundReached =
+        !options.relativeIntensities && (phong.kd + phong.ks).maxCoeff() >= 1 - kAtEnergyBound;
     if (out.heldOut) {
         const std::vector<PathSet> flat = withoutLobe(out.model.paths);
-        out.lambertian = fitPathSets(obs, flat, flat, {startScan(out.model, false)}, fit);
+        out.lambertian =
+            fitPathSets(obs, flat, flat, {startScan(out.model, false, out.scale)}, fit);
+        rescale(*out.lambertian, out.scale);
         out.holdout = predictCapture(*out.heldOut, out.phong.materials[0].material(),
                                      out.lambertian->materials[0].material());
     }

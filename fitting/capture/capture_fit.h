@@ -72,12 +72,16 @@ struct HoldoutPrediction {
     std::vector<LightPrediction> perLight;
 };
 
-// A start for the fit, from a subsample of the pairs. With the lobe: kd and ks per channel are
-// non-negative linear least squares at each exponent n; n is the best of 1, 2, 4, ..., 2^16,
-// refined by golden-section search; kd and ks are then clamped into the energy-conserving range,
-// with ks at least 0.001 so the fitter sees the lobe (at ks = 0 the images do not constrain n).
-// Without the lobe: kd alone, ks = 0. Throws Error if the model has no pair.
-PhongMaterial startScan(const CaptureModel& model, bool lobe);
+// The best material for a subsample of the pairs, with no bound but kd, ks >= 0. With the lobe:
+// kd and ks per channel are non-negative linear least squares at each exponent n; n is the best of
+// 1, 2, 4, ..., 2^16, refined by golden-section search. Without the lobe: kd alone, ks = 0. Throws
+// Error if the model has no pair.
+PhongMaterial scanReflectances(const CaptureModel& model, bool lobe);
+
+// A start for the fit: scanReflectances divided by `scale` (the images' scale the fit runs at),
+// then clamped into the energy-conserving range, with ks at least 0.001 so the fitter sees the
+// lobe (at ks = 0 the images do not constrain n).
+PhongMaterial startScan(const CaptureModel& model, bool lobe, double scale = 1);
 
 // The predicted value of entry `entry` of view `view`, or nothing where the model makes no
 // prediction (a pixel it did not fit); such pairs are left out of both errors.
@@ -93,13 +97,21 @@ HoldoutPrediction predictCapture(const CaptureModel& model, const PhongMaterial&
 
 struct CaptureFitOptions {
     double minCos = 0.05;
+    // The light intensities are known only up to a common factor (and the exposure is unknown):
+    // kd and ks are fitted in the images' units, with no energy bound; n is absolute.
+    bool relativeIntensities = false;
     FitOptions fit;  // loss, grey, threads, verbose; estimator and rounds are set by fitCapture
 };
 
 struct CaptureFit {
     CaptureModel model;  // of the fitted lights
     FitResult phong;
-    PhongMaterial start;  // where the Phong fit started: startScan(model, true)
+    PhongMaterial start;  // where the Phong fit started: startScan(model, true), in image units
+    double scale = 1;     // the images were divided by this for the fit (relative intensities)
+    // Calibrated intensities, and the Phong fit ended on kd + ks = 1 in some channel: the images
+    // are as bright as an energy-conserving material can be, or brighter (intensities that are
+    // in fact relative, a wrong exposure).
+    bool energyBoundReached = false;
     // With held-out lights: their model, the Lambertian-only fit and both fits' predictions.
     std::optional<CaptureModel> heldOut;
     std::optional<FitResult> lambertian;

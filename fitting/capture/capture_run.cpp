@@ -164,6 +164,7 @@ void describeCapture(const CaptureRun& run, const CaptureFitInputs& inputs,
         "mask pixels whose normal is zero, not unit or not finite (pixels.bad_normals)"};
     report["pairs"] = {{"total", model.pairs}, {"used", model.used}, {"left_out", model.leftOut}};
     report["decoding"] = run.images.front().decoding;
+    report["intensities"] = run.intensities;
 }
 
 // The compare.png of a typical held-out light (median Phong error), or of the middle fitted light
@@ -206,6 +207,12 @@ void writeUniformFit(const CaptureRun& run, const CaptureFitInputs& inputs, cons
     describeCapture(run, inputs, fit.model, report);
     report["model"] = modelJson("uniform", {"diffuse", "specular"}, {"diffuse"}, inputs, loss);
     report["start"] = {{"kd", rgb(fit.start.kd)}, {"ks", rgb(fit.start.ks)}, {"n", fit.start.n}};
+    report["energy_bound_reached"] = fit.energyBoundReached;
+    report["units"] =
+        fit.scale == 1
+            ? "kd and ks absolute (calibrated light intensities), bounded by kd + ks <= 1"
+            : "kd and ks in the units of the images divided by the light intensities, known up to "
+              "the intensities' common factor, with no energy bound; n is absolute";
     report["pixels"] = {{"used", run.capture.pixels.size()},
                         {"bad_normals", run.capture.badNormals}};
     // The Lambertian-only fit, reported as the Phong fit is (its ks and n are unconstrained).
@@ -311,6 +318,19 @@ CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet) {
     run.heldOutImages.assign(run.images.begin() + std::ptrdiff_t(run.lights.size()),
                              run.images.end());
     run.images.resize(run.lights.size());
+    const bool allEqual = std::all_of(
+        run.capture.lights.begin(), run.capture.lights.end(), [&](const CaptureLight& l) {
+            return (l.intensity == run.capture.lights.front().intensity).all();
+        });
+    CaptureFitOptions fitOptions = inputs.fit;
+    fitOptions.relativeIntensities =
+        inputs.intensities == "relative" || (inputs.intensities == "auto" && allEqual);
+    run.intensities =
+        !fitOptions.relativeIntensities ? "calibrated"
+        : inputs.intensities == "relative"
+            ? "relative (--intensities relative)"
+            : "relative (every light has the same intensity; --intensities calibrated if they "
+              "are calibrated)";
     if (inputs.perPixelAlbedo) {
         AlbedoMapOptions options;
         options.grey = inputs.fit.fit.grey;
@@ -318,7 +338,7 @@ CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet) {
         run.albedoMap = fitCaptureAlbedoMap(run.capture, run.images, run.heldOutImages,
                                             inputs.fit.minCos, options);
     } else {
-        run.fit = fitCapture(run.capture, run.images, run.heldOutImages, inputs.fit);
+        run.fit = fitCapture(run.capture, run.images, run.heldOutImages, fitOptions);
     }
     return run;
 }

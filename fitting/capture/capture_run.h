@@ -20,12 +20,17 @@ struct CaptureFitInputs {
     CaptureReadOptions read;
     CaptureFitOptions fit;
     bool perPixelAlbedo = false;  // --albedo per-pixel: albedo_map_fit.h instead of one kd
+    // "calibrated", "relative" (CaptureFitOptions::relativeIntensities), or "auto": relative when
+    // every light has the same intensity (a capture whose file says only 1 1 1).
+    std::string intensities = "auto";
 };
 
 struct CaptureRun {
     Capture capture;
     std::vector<int> lights, holdout;  // indices into capture.lights
     std::vector<CaptureImage> images, heldOutImages;
+    // How the light intensities were taken, as fit.json and the console say it.
+    std::string intensities;
     // One of the two: one material (fitCapture) or an albedo map (fitCaptureAlbedoMap).
     std::optional<CaptureFit> fit;
     std::optional<AlbedoMapCaptureFit> albedoMap;

@@ -39,7 +39,7 @@ struct FitCli {
     bool fitExposure = false, ignoreNonFinite = false;
     std::uint64_t seed = 0;
     // Capture fits.
-    std::string capture, lights, holdout, albedo = "uniform";
+    std::string capture, lights, holdout, albedo = "uniform", intensities = "auto";
     double minCos = 0.05;
 };
 
@@ -105,6 +105,10 @@ void printLeftOut(const CaptureRun& run, const CaptureModel& model) {
         model.pairs - model.used, model.leftOut.at("below_min_cos"), model.leftOut.at("clipped"),
         model.leftOut.at("non_finite"), model.leftOut.at("facing_away"));
     fmt::print("photographs: {}\n", run.images.front().decoding);
+    fmt::print("light intensities: {}{}\n", run.intensities,
+               run.intensities == "calibrated"
+                   ? ""
+                   : ": kd and ks in the images' units, no energy bound; n absolute");
     if (run.capture.badNormals > 0)
         fmt::print("left out {} pixel{} of the mask whose normal is zero, not unit or not finite\n",
                    run.capture.badNormals, run.capture.badNormals == 1 ? "" : "s");
@@ -130,6 +134,11 @@ void printUniformFit(const FitCli& a, const CaptureRun& run) {
     fmt::print("fitted {} pairs of {} lights: rmse {:.5g}; ", fit.model.used, run.lights.size(),
                fit.phong.rmse);
     printLeftOut(run, fit.model);
+    if (fit.energyBoundReached)
+        fmt::print(
+            "warning: the fit ended on kd + ks = 1, the energy bound: the images are as bright as "
+            "an energy-conserving material allows under light_intensities.txt, or brighter; if "
+            "the intensities are relative, fit with --intensities relative\n");
     double seconds = fit.phong.timeSeconds;
     if (fit.holdout) {
         const MaterialFit& lam = fit.lambertian->materials[0];
@@ -180,6 +189,7 @@ void runCaptureFitCommand(const FitCli& a) {
     in.fit.minCos = a.minCos;
     in.fit.fit = fitOptions(a);
     in.perPixelAlbedo = a.albedo == "per-pixel";
+    in.intensities = a.intensities;
     if (in.perPixelAlbedo && a.loss != "l2")
         throw Error(
             fmt::format("--loss {}: --albedo per-pixel fits least squares (l2) only", a.loss));
@@ -276,6 +286,13 @@ void addFitCommand(CLI::App& app) {
                      "uniform: one kd for the object; per-pixel: a kd per mask pixel (a "
                      "textured object) with one shared ks and n, written to kd.exr")
         ->check(CLI::IsMember({"uniform", "per-pixel"}))
+        ->capture_default_str();
+    capture
+        ->add_option("--intensities", a->intensities,
+                     "calibrated: light_intensities.txt is absolute (kd + ks <= 1); relative: "
+                     "known up to a common factor (kd, ks in image units, no energy bound); "
+                     "auto: relative when every light has the same intensity")
+        ->check(CLI::IsMember({"auto", "calibrated", "relative"}))
         ->capture_default_str();
     capture->add_option("--min-cos", a->minCos,
                         "leave out pairs with n.l below this (shadows, grazing light; default "

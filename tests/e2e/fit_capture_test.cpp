@@ -101,6 +101,36 @@ TEST_F(CaptureCommand, PerPixelAlbedoWritesTheMapAndTheHoldoutComparison) {
     EXPECT_FALSE(cv::imread(out("map/compare.png")).empty());
 }
 
+// A light_intensities.txt with one value for every light reads as relative intensities: kd and
+// ks in image units, no energy bound, said on the console and in fit.json; --intensities
+// calibrated takes them as absolute and warns when the fit ends on the energy bound.
+TEST_F(CaptureCommand, EqualIntensitiesAreTakenAsRelative) {
+    const test::TempDir relative("capture_relative");
+    Synthetic synth;
+    synth.commonIntensity = 0.3;
+    synth.write(relative.path());
+    const auto r = run({"fit", "--capture", relative.path().string(), "--threads", "2", "-o",
+                        out("relative"), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("light intensities: relative (every light has the same intensity"),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+    const auto report = nlohmann::json::parse(std::ifstream(out("relative/fit.json")));
+    const double scale = synth.commonIntensity / Synthetic::kWrittenIntensity;
+    EXPECT_NEAR(report["materials"]["capture"]["kd"][0].get<double>(), scale * synth.truth.kd[0],
+                0.02 * scale * synth.truth.kd[0]);
+    EXPECT_NE(report["units"].get<std::string>().find("no energy bound"), std::string::npos);
+
+    const auto c = run({"fit", "--capture", relative.path().string(), "--intensities", "calibrated",
+                        "--threads", "2", "-o", out("calibrated"), "--quiet"});
+    ASSERT_EQ(c.exitCode, 0) << c.err;
+    EXPECT_NE(c.out.find("light intensities: calibrated\n"), std::string::npos) << c.out;
+    EXPECT_NE(c.out.find("warning: the fit ended on kd + ks = 1"), std::string::npos) << c.out;
+    const auto calibrated = nlohmann::json::parse(std::ifstream(out("calibrated/fit.json")));
+    EXPECT_TRUE(calibrated["energy_bound_reached"].get<bool>());
+}
+
 // DiLiGenT's pot2 (the public 8-bit linear crop) has 73 zero normals inside its mask: they are
 // left out and counted, and the rest is fitted.
 TEST_F(CaptureCommand, RealCaptureWithZeroNormalsIsFittedWithThemCounted) {
@@ -147,6 +177,7 @@ TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         {{"--capture", dir, "--albedo", "per-pixel", "--loss", "huber"},
          "--albedo per-pixel fits least squares"},
         {{"--capture", dir, "--albedo", "texture"}, "--albedo"},
+        {{"--capture", dir, "--intensities", "guessed"}, "--intensities"},
         {{"--view", "a.xml:b.exr", "--albedo", "per-pixel"}, "--albedo applies to --capture"},
     };
     for (const Case& c : cases) {

@@ -27,6 +27,11 @@ struct Synthetic {
     // If set, the diffuse albedo at pixel (x, y) instead of truth.kd: a textured object.
     std::function<Color3(int x, int y)> albedo;
     int lights = kLights;  // DiLiGenT has 96
+    // > 0: every light has this intensity, and light_intensities.txt says kWrittenIntensity for
+    // each (intensities known only up to a common factor); in the images' units kd and ks are then
+    // commonIntensity / kWrittenIntensity times the truth.
+    double commonIntensity = 0;
+    static constexpr double kWrittenIntensity = 0.1;
 
     Synthetic() {
         truth.kd = Color3(0.4, 0.3, 0.2);
@@ -68,11 +73,14 @@ struct Synthetic {
             intensities(dir / "light_intensities.txt");
         for (int i = 0; i < lights; ++i) {
             const Vec3d l = lightDirection(i, lights);
-            const Color3 e(intensity(rng), intensity(rng), intensity(rng));
+            const Color3 e = commonIntensity > 0
+                                 ? Color3::Constant(commonIntensity)
+                                 : Color3(intensity(rng), intensity(rng), intensity(rng));
             const std::string name = fmt::format("{:03d}.png", i + 1);
             names << name << "\n";
             directions << fmt::format("{} {} {}\n", l.x(), l.y(), l.z());
-            intensities << fmt::format("{} {} {}\n", e[0], e[1], e[2]);
+            const Color3 written = commonIntensity > 0 ? Color3::Constant(kWrittenIntensity) : e;
+            intensities << fmt::format("{} {} {}\n", written[0], written[1], written[2]);
             cv::Mat image(kSize, kSize, CV_16UC3, cv::Scalar(0, 0, 0));
             for (int y = 0; y < kSize; ++y)
                 for (int x = 0; x < kSize; ++x) {
