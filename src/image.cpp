@@ -172,10 +172,12 @@ Image readLdr(const std::string& path, const ReadOptions& options) {
         case CV_8U:
             decodeIntegerPixels<std::uint8_t>(mat, decodingTable(256, options, path), image);
             image.decoding = describeDecoding(256, options);
+            image.integerCurve = resolvedEncoding(256, options);
             break;
         case CV_16U:
             decodeIntegerPixels<std::uint16_t>(mat, decodingTable(65536, options, path), image);
             image.decoding = describeDecoding(65536, options);
+            image.integerCurve = resolvedEncoding(65536, options);
             break;
         case CV_32F:
             decodeFloatPixels(mat, image);

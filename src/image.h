@@ -7,12 +7,21 @@
 #include <cstddef>
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "math.h"
 
 namespace phongfit {
+
+// How 8- and 16-bit values v in [0, 1] become linear. EXR and float TIFF are linear already.
+enum class Encoding {
+    Auto,    // sRGB for 8-bit (what cameras and editors write), linear for 16-bit (raw converters)
+    Srgb,    // the sRGB transfer function
+    Linear,  // v itself
+    Gamma,   // v^gamma
+};
 
 struct Image {
     int width = 0, height = 0;
@@ -22,6 +31,8 @@ struct Image {
     // How the file's values became linear, in words, e.g. "8-bit, decoded with the sRGB curve (the
     // default for 8-bit)": what a user must know to tell a linear capture decoded as sRGB.
     std::string decoding = "linear";
+    // The curve integer values were decoded with (never Auto); none for float data.
+    std::optional<Encoding> integerCurve;
 
     Image() = default;
     // Black, nothing clipped.
@@ -37,14 +48,6 @@ struct Image {
         float* p = &rgb[3 * index(x, y)];
         p[0] = c[0], p[1] = c[1], p[2] = c[2];
     }
-};
-
-// How 8- and 16-bit values v in [0, 1] become linear. EXR and float TIFF are linear already.
-enum class Encoding {
-    Auto,    // sRGB for 8-bit (what cameras and editors write), linear for 16-bit (raw converters)
-    Srgb,    // the sRGB transfer function
-    Linear,  // v itself
-    Gamma,   // v^gamma
 };
 
 struct ReadOptions {

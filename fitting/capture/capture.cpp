@@ -108,6 +108,7 @@ CaptureImage readOne(const Capture& capture, int light, const CaptureReadOptions
     CaptureImage out;
     out.light = light;
     out.decoding = image.decoding;
+    out.integerCurve = image.integerCurve;
     out.rgb.resize(capture.pixels.size());
     out.state.resize(capture.pixels.size());
     const Color<float> intensity = l.intensity.cast<float>();

@@ -60,10 +60,11 @@ enum class PixelState : std::uint8_t { Ok, Clipped, NonFinite };
 
 // One light's photograph on the mask pixels.
 struct CaptureImage {
-    int light = 0;                  // index into Capture::lights
-    std::vector<Color<float>> rgb;  // per mask pixel, divided by the light's intensity
-    std::vector<PixelState> state;  // per mask pixel
-    std::string decoding;           // Image::decoding of the photograph
+    int light = 0;                         // index into Capture::lights
+    std::vector<Color<float>> rgb;         // per mask pixel, divided by the light's intensity
+    std::vector<PixelState> state;         // per mask pixel
+    std::string decoding;                  // Image::decoding of the photograph
+    std::optional<Encoding> integerCurve;  // Image::integerCurve
 };
 
 // More than this fraction of the mask's pixels with a bad normal means the normals (or the mask) do

@@ -29,26 +29,6 @@ constexpr double kAtEnergyBound = 1e-3;
 // Below this ks the start would hide the lobe from the fitter (see startScan).
 constexpr double kMinStartKs = 1e-3;
 
-PathSet oneTermPerPixel(const std::vector<float>& cosines, const std::vector<float>& logCos) {
-    const std::size_t count = cosines.size();
-    PathSet ps;
-    ps.width = int(count);
-    ps.height = 1;
-    ps.spp = 1;
-    ps.slots = 1;
-    ps.background.assign(count, Color<float>::Zero());
-    ps.terms.resize(count);
-    ps.vertices.resize(count);
-    ps.pixelStart.resize(count + 1);
-    for (std::size_t k = 0; k < count; ++k) {
-        ps.terms[k] = {std::uint32_t(k), std::uint32_t(k), 1, Color<float>::Constant(cosines[k])};
-        ps.vertices[k] = {logCos[k], 0};
-        ps.pixelStart[k] = std::uint32_t(k);
-    }
-    ps.pixelStart[count] = std::uint32_t(count);
-    return ps;
-}
-
 // Squared errors summed until the RMSE is taken.
 struct ErrorSums {
     double squares = 0, observedSquares = 0;
@@ -136,6 +116,26 @@ std::string describeLeftOut(const CaptureModel& m) {
 }
 
 }  // namespace
+
+PathSet oneTermPerPixel(const std::vector<float>& cosines, const std::vector<float>& logCos) {
+    const std::size_t count = cosines.size();
+    PathSet ps;
+    ps.width = int(count);
+    ps.height = 1;
+    ps.spp = 1;
+    ps.slots = 1;
+    ps.background.assign(count, Color<float>::Zero());
+    ps.terms.resize(count);
+    ps.vertices.resize(count);
+    ps.pixelStart.resize(count + 1);
+    for (std::size_t k = 0; k < count; ++k) {
+        ps.terms[k] = {std::uint32_t(k), std::uint32_t(k), 1, Color<float>::Constant(cosines[k])};
+        ps.vertices[k] = {logCos[k], 0};
+        ps.pixelStart[k] = std::uint32_t(k);
+    }
+    ps.pixelStart[count] = std::uint32_t(count);
+    return ps;
+}
 
 CaptureModel buildCaptureModel(const Capture& capture, const std::vector<CaptureImage>& images,
                                double minCos) {

@@ -42,6 +42,10 @@ struct CaptureModel {
     std::map<std::string, std::size_t> leftOut;
 };
 
+// One view's path set: pair k is pixel k of a one-row image, one term (constant cos theta_i) with
+// one vertex (log cos alpha).
+PathSet oneTermPerPixel(const std::vector<float>& cosines, const std::vector<float>& logCos);
+
 // Pairs with n.l < minCos are left out, as are clipped and non-finite pixels and normals facing
 // away from the camera; a light with no pair left has no view. Throws Error if minCos is not in
 // [0, 1).

@@ -165,6 +165,11 @@ void describeCapture(const CaptureRun& run, const CaptureFitInputs& inputs,
     report["pairs"] = {{"total", model.pairs}, {"used", model.used}, {"left_out", model.leftOut}};
     report["decoding"] = run.images.front().decoding;
     report["intensities"] = run.intensities;
+    if (const auto& check = run.decodingCheck)
+        report["decoding_check"] = {{"used", curveName(check->used)},
+                                    {"other_fits_more_pixels", check->otherBetterFraction},
+                                    {"other", curveName(check->other)},
+                                    {"other_fits_better", check->otherFitsBetter}};
 }
 
 // The compare.png of a typical held-out light (median Phong error), or of the middle fitted light
@@ -340,6 +345,9 @@ CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet) {
     } else {
         run.fit = fitCapture(run.capture, run.images, run.heldOutImages, fitOptions);
     }
+    run.decodingCheck =
+        checkDecoding(run.capture, run.albedoMap ? run.albedoMap->model : run.fit->model,
+                      run.images, inputs.fit.fit.threads);
     return run;
 }
 

@@ -9,6 +9,7 @@
 #include "albedo_map_fit.h"
 #include "capture.h"
 #include "capture_fit.h"
+#include "decoding_check.h"
 #include "fitter.h"
 
 namespace phongfit {
@@ -31,6 +32,7 @@ struct CaptureRun {
     std::vector<CaptureImage> images, heldOutImages;
     // How the light intensities were taken, as fit.json and the console say it.
     std::string intensities;
+    std::optional<DecodingCheck> decodingCheck;  // of the fitted lights' photographs
     // One of the two: one material (fitCapture) or an albedo map (fitCaptureAlbedoMap).
     std::optional<CaptureFit> fit;
     std::optional<AlbedoMapCaptureFit> albedoMap;

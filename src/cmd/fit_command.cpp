@@ -105,6 +105,12 @@ void printLeftOut(const CaptureRun& run, const CaptureModel& model) {
         model.pairs - model.used, model.leftOut.at("below_min_cos"), model.leftOut.at("clipped"),
         model.leftOut.at("non_finite"), model.leftOut.at("facing_away"));
     fmt::print("photographs: {}\n", run.images.front().decoding);
+    if (const auto& check = run.decodingCheck; check && check->otherFitsBetter)
+        fmt::print(
+            "warning: the photographs look {0}, not {1}: read as {0}, {2:.0f}% of the pixels "
+            "follow the model more closely; if they are {0}, fit with --{3}\n",
+            curveName(check->other), curveName(check->used), 100 * check->otherBetterFraction,
+            check->other == Encoding::Srgb ? "srgb" : "linear");
     fmt::print("light intensities: {}{}\n", run.intensities,
                run.intensities == "calibrated"
                    ? ""

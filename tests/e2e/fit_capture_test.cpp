@@ -131,6 +131,57 @@ TEST_F(CaptureCommand, EqualIntensitiesAreTakenAsRelative) {
     EXPECT_TRUE(calibrated["energy_bound_reached"].get<bool>());
 }
 
+// The photographs' decoding is checked against the model: linear codes read as sRGB (the 8-bit
+// default) and sRGB codes read as linear are both named, with the flag that reads them right; the
+// right reading gives no warning.
+TEST_F(CaptureCommand, WrongDecodingIsNamed) {
+    struct Case {
+        std::string dir;
+        std::vector<std::string> flags;
+        std::string warning;  // empty: none
+    };
+    // The synthetic capture's 16-bit linear codes, re-encoded as 8-bit sRGB.
+    const test::TempDir srgb("capture_srgb");
+    for (const auto& entry : fs::directory_iterator(dir_.path())) {
+        const fs::path to = srgb.path() / entry.path().filename();
+        const std::string name = entry.path().filename().string();
+        if (name.size() != 7 || entry.path().extension() != ".png") {
+            fs::copy_file(entry.path(), to);
+            continue;
+        }
+        const cv::Mat linear = cv::imread(entry.path().string(), cv::IMREAD_UNCHANGED);
+        cv::Mat encoded(linear.size(), CV_8UC3);
+        for (int y = 0; y < linear.rows; ++y)
+            for (int x = 0; x < linear.cols; ++x)
+                for (int c = 0; c < 3; ++c)
+                    encoded.at<cv::Vec3b>(y, x)[c] = cv::saturate_cast<uchar>(
+                        255 * linearToSrgb(linear.at<cv::Vec3w>(y, x)[c] / 65535.0) + 0.5);
+        cv::imwrite(to.string(), encoded);
+    }
+    const std::string pot2 = PHONGFIT_POT2_DIR;
+    const std::vector<Case> cases = {
+        {pot2, {"--lights", "1-32"}, "warning: the photographs look linear, not sRGB"},
+        {pot2, {"--lights", "1-32", "--linear"}, ""},
+        {srgb.path().string(), {"--linear"}, "warning: the photographs look sRGB, not linear"},
+        {srgb.path().string(), {}, ""},
+    };
+    for (const Case& c : cases) {
+        std::vector<std::string> args = {"fit",           "--capture", c.dir, "--albedo",
+                                         "per-pixel",     "--threads", "2",   "-o",
+                                         out("decoding"), "--quiet"};
+        args.insert(args.end(), c.flags.begin(), c.flags.end());
+        const auto r = run(args);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        const auto report = nlohmann::json::parse(std::ifstream(out("decoding/fit.json")));
+        EXPECT_EQ(report["decoding_check"]["other_fits_better"].get<bool>(), !c.warning.empty())
+            << c.dir << " " << report["decoding_check"].dump();
+        if (c.warning.empty())
+            EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+        else
+            EXPECT_NE(r.out.find(c.warning), std::string::npos) << r.out;
+    }
+}
+
 // DiLiGenT's pot2 (the public 8-bit linear crop) has 73 zero normals inside its mask: they are
 // left out and counted, and the rest is fitted.
 TEST_F(CaptureCommand, RealCaptureWithZeroNormalsIsFittedWithThemCounted) {
