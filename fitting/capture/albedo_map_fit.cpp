@@ -34,6 +34,7 @@ constexpr double kLobeSigmas = 3;
 struct Pair {
     float cosine, logCos;
     Color<float> observed;
+    std::uint32_t view;  // the light's view in the model
 };
 
 // The pairs grouped by fitted pixel.
@@ -67,7 +68,8 @@ PixelPairs groupByPixel(const CaptureModel& model, std::size_t maskPixels, int m
             const std::uint32_t p = model.entries[v][k];
             if (!fitted[p]) continue;
             out.pairs[at[p]++] = {ps.terms[k].constant[0], ps.vertices[k].logCos,
-                                  Color<float>(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2])};
+                                  Color<float>(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]),
+                                  std::uint32_t(v)};
         }
     }
     return out;
@@ -195,14 +197,20 @@ double bestExponent(Solver& solver, int& evaluations) {
     return std::exp2(gridThenGoldenMinimum(sse, kMinLog2N, kMaxLog2N, kGridStep, kLog2NTolerance));
 }
 
-// Standard errors of ks and n from the Gauss-Newton information with the free kd_p eliminated
-// (Schur complement); sigma^2 from the residual. Parameters at a bound (ks = 0, kd_p = 0) are held.
+// Standard errors of ks and n, the larger of two: the Gauss-Newton information with the free kd_p
+// eliminated (Schur complement), sigma^2 from the residual, which holds when the model is exact and
+// the noise independent; and the sandwich clustered by light, which also holds when each light
+// misfits in its own way (a direction or intensity a little off, interreflection): real captures,
+// where the exponents fitted from two halves of the lights differ by far more than the first says.
+// Parameters at a bound (ks = 0, kd_p = 0) are held.
 void standardErrors(const PixelPairs& pixels, const Solver& solver, const Solution& s, double n,
-                    bool grey, std::size_t values, AlbedoMapFit& out) {
+                    bool grey, std::size_t values, std::size_t views, AlbedoMapFit& out) {
     // Parameters: ks per channel (or one), then n.
     const int ksCount = grey ? 1 : 3, nIndex = ksCount;
     const auto ksIndex = [&](int c) { return grey ? 0 : c; };
     Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
+    // Per light, the score (projected Jacobian times residual) of each parameter.
+    std::vector<Eigen::Vector4d> scores(views, Eigen::Vector4d::Zero());
     std::size_t freeKd = 0;
     for (std::size_t i = 0; i < pixels.pixel.size(); ++i) {
         double ab = 0, ad = 0, bb = 0, bd = 0, dd = 0;
@@ -221,13 +229,26 @@ void standardErrors(const PixelPairs& pixels, const Solver& solver, const Soluti
             info(j, nIndex) += ks * bd;
             info(nIndex, j) += ks * bd;
             info(nIndex, nIndex) += ks * ks * dd;
-            if (s.kd[i][c] > 0) {  // free: eliminate it
+            const bool free = s.kd[i][c] > 0;
+            if (free) {  // eliminate it
                 ++freeKd;
                 const Eigen::Vector2d v(ab, ks * ad);
                 info(j, j) -= v[0] * v[0] / aa;
                 info(j, nIndex) -= v[0] * v[1] / aa;
                 info(nIndex, j) -= v[0] * v[1] / aa;
                 info(nIndex, nIndex) -= v[1] * v[1] / aa;
+            }
+            for (std::size_t k = pixels.start[i]; k < pixels.start[i + 1]; ++k) {
+                const Pair& pair = pixels.pairs[k];
+                const double a = diffuseBasis(pair.cosine);
+                const double b = lobeBasis(pair.cosine, pair.logCos, n);
+                const double d = lobeSlope(pair.cosine, pair.logCos, n);
+                const double r = pair.observed[c] - s.kd[i][c] * a - ks * b;
+                // The Jacobian row with kd_p projected out, as the Schur complement does.
+                const double jKs = free ? b - a * ab / aa : b;
+                const double jN = ks * (free ? d - a * ad / aa : d);
+                scores[pair.view][j] += jKs * r;
+                scores[pair.view][nIndex] += jN * r;
             }
         }
     }
@@ -239,15 +260,26 @@ void standardErrors(const PixelPairs& pixels, const Solver& solver, const Soluti
     if (lobe) free.push_back(nIndex);
     const double dof = double(values) - double(freeKd) - double(free.size());
     const double sigma2 = dof > 0 ? s.sse / dof : std::numeric_limits<double>::infinity();
-    Eigen::MatrixXd reduced(free.size(), free.size());
-    for (std::size_t r = 0; r < free.size(); ++r)
-        for (std::size_t c = 0; c < free.size(); ++c) reduced(r, c) = info(free[r], free[c]);
-    const Eigen::MatrixXd cov = sigma2 * reduced.inverse();
+    const auto size = Eigen::Index(free.size());
+    Eigen::MatrixXd reduced(size, size), meat = Eigen::MatrixXd::Zero(size, size);
+    for (Eigen::Index r = 0; r < size; ++r)
+        for (Eigen::Index c = 0; c < size; ++c) reduced(r, c) = info(free[r], free[c]);
+    for (const Eigen::Vector4d& score : scores) {
+        Eigen::VectorXd g(size);
+        for (Eigen::Index r = 0; r < size; ++r) g[r] = score[free[std::size_t(r)]];
+        meat += g * g.transpose();
+    }
+    const double clusters = double(views);
+    if (clusters > 1) meat *= clusters / (clusters - 1);
+    const Eigen::MatrixXd bread = reduced.inverse();
+    const Eigen::MatrixXd model = sigma2 * bread, clustered = bread * meat * bread;
     const auto stdOf = [&](int param) {
         const auto at = std::find(free.begin(), free.end(), param);
         if (at == free.end()) return std::numeric_limits<double>::infinity();
-        const double var = cov(at - free.begin(), at - free.begin());
-        return var >= 0 ? std::sqrt(var) : std::numeric_limits<double>::infinity();
+        const Eigen::Index i = at - free.begin();
+        const double var = std::max(model(i, i), clustered(i, i));
+        return var >= 0 && std::isfinite(var) ? std::sqrt(var)
+                                              : std::numeric_limits<double>::infinity();
     };
     for (int c = 0; c < 3; ++c) out.ksStd[c] = s.ks[c] > 0 ? stdOf(ksIndex(c)) : 0.0;
     out.nStd = lobe ? stdOf(nIndex) : std::numeric_limits<double>::infinity();
@@ -296,7 +328,7 @@ AlbedoMapFit fitAlbedoMap(const Capture& capture, const CaptureModel& model,
     const std::size_t values = 3 * pixels.pairs.size();
     out.rmse = std::sqrt(std::max(phong.sse, 0.0) / double(values));
     out.lambertianRmse = std::sqrt(std::max(lambertian.sse, 0.0) / double(values));
-    standardErrors(pixels, solver, phong, out.n, options.grey, values, out);
+    standardErrors(pixels, solver, phong, out.n, options.grey, values, model.entries.size(), out);
     bool lobe = false;
     for (int c = 0; c < 3; ++c) lobe |= out.ks[c] > kLobeSigmas * out.ksStd[c];
     if (!lobe || !std::isfinite(out.nStd)) out.unconstrained.push_back("n");
