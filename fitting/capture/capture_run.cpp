@@ -274,8 +274,11 @@ void writeAlbedoMapFit(const CaptureRun& run, const CaptureFitInputs& inputs, co
                         {"fitted_pixels", m.pixelsFitted},
                         {"kd_plus_ks_above_1", m.kdAboveOne}};
     report["units"] =
-        "kd and ks in the units of the images divided by the light intensities (relative if "
-        "the intensities are); n is absolute; no energy bound is imposed";
+        run.intensities == "calibrated"
+            ? "kd and ks absolute (calibrated light intensities); no energy bound is imposed per "
+              "pixel (kd_map.kd_plus_ks_above_1 counts the pixels beyond it)"
+            : "kd and ks in the units of the images divided by the light intensities, known up to "
+              "the intensities' common factor; n is absolute; no energy bound is imposed";
     report["rmse"] = m.rmse;
     report["lambertian_rmse"] = m.lambertianRmse;
     report["time_seconds"] = m.seconds;

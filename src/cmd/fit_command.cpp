@@ -179,11 +179,14 @@ void printAlbedoMapFit(const FitCli& a, const CaptureRun& run) {
                run.lights.size(), m.rmse, m.lambertianRmse);
     printLeftOut(run, fit.model);
     if (fit.holdout) printHoldout(run, *fit.holdout, "per-pixel Lambertian");
-    fmt::print(
-        "kd and ks are in the images' units divided by the light intensities (relative if they "
-        "are), n is absolute; {} in {:.2f} s -> {}\n",
-        m.unconstrained.empty() ? "converged" : "not converged", m.seconds,
-        (std::filesystem::path(a.output) / "fit.json").string());
+    if (run.intensities == "calibrated" && m.kdAboveOne > 0)
+        fmt::print(
+            "warning: {} pixels have kd + ks > 1 (no energy bound is imposed per pixel): brighter "
+            "than an energy-conserving material under light_intensities.txt; if the intensities "
+            "are relative, say --intensities relative\n",
+            m.kdAboveOne);
+    fmt::print("{} in {:.2f} s -> {}\n", m.unconstrained.empty() ? "converged" : "not converged",
+               m.seconds, (std::filesystem::path(a.output) / "fit.json").string());
 }
 
 void runCaptureFitCommand(const FitCli& a) {
