@@ -156,6 +156,24 @@ TEST(CaptureIntensities, RelativeIntensitiesAreFittedInImageUnitsWithoutEnergyBo
     EXPECT_TRUE(calibrated.energyBoundReached);
 }
 
+// A few NaN pixels are left out and counted; more than kMaxNonFiniteFraction of the pairs is an
+// error naming the count and the limit.
+TEST_F(CaptureTest, NonFinitePixelsAreLeftOutUpToALimit) {
+    const Capture c = readCapture(dir_.path().string());
+    std::vector<CaptureImage> images = readCaptureImages(c, range(0, 9), {}, 2);
+    const auto spoil = [&](std::size_t every) {
+        std::vector<CaptureImage> out = images;
+        for (CaptureImage& image : out)
+            for (std::size_t i = 0; i < image.state.size(); i += every)
+                image.state[i] = PixelState::NonFinite;
+        return out;
+    };
+    const CaptureModel few = buildUsableModel(c, spoil(100), 0.05, "fitted");
+    EXPECT_GT(few.leftOut.at("non_finite"), 0u);
+    const std::string error = errorOf([&] { buildUsableModel(c, spoil(10), 0.05, "fitted"); });
+    EXPECT_NE(error.find("are NaN or infinite, more than the 5%"), std::string::npos) << error;
+}
+
 TEST_F(CaptureTest, MissingFilesAreNamed) {
     for (const char* name : {"filenames.txt", "light_directions.txt", "light_intensities.txt",
                              "mask.png", "normals.exr", "007.png"}) {

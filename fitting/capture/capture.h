@@ -70,6 +70,10 @@ struct CaptureImage {
 // More than this fraction of the mask's pixels with a bad normal means the normals (or the mask) do
 // not belong to the capture: an error rather than pixels left out.
 inline constexpr double kMaxBadNormalFraction = 0.05;
+// More than this fraction of a set of lights' (mask pixel, light) pairs with a NaN or infinite
+// value means the photographs are broken, not a few bad pixels: an error rather than pairs left
+// out.
+inline constexpr double kMaxNonFiniteFraction = 0.05;
 
 // Reads and checks the text files, the mask and the normals (not the photographs). A mask pixel
 // whose normal is not unit within kUnitTolerance is left out and counted (Capture::badNormals).

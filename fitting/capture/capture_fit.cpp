@@ -264,6 +264,13 @@ CaptureModel buildUsableModel(const Capture& capture, const std::vector<CaptureI
         throw Error(
             fmt::format("capture '{}': no (pixel, light) pair of the {} {} lights can be used ({})",
                         capture.dir, images.size(), which, describeLeftOut(model)));
+    const std::size_t nonFinite = model.leftOut.at("non_finite");
+    if (double(nonFinite) > kMaxNonFiniteFraction * double(model.pairs))
+        throw Error(fmt::format(
+            "capture '{}': {} of the {} (pixel, light) pairs of the {} {} lights are NaN or "
+            "infinite, more than the {:g}% a capture may have left out",
+            capture.dir, nonFinite, model.pairs, images.size(), which,
+            100 * kMaxNonFiniteFraction));
     return model;
 }
 

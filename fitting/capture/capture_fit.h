@@ -52,8 +52,9 @@ PathSet oneTermPerPixel(const std::vector<float>& cosines, const std::vector<flo
 CaptureModel buildCaptureModel(const Capture& capture, const std::vector<CaptureImage>& images,
                                double minCos);
 
-// buildCaptureModel, or Error if no pair can be used, naming the capture, how many `which` lights
-// ("fitted", "held-out") there were and why their pairs were left out.
+// buildCaptureModel, or Error if no pair can be used (naming the capture, how many `which` lights,
+// "fitted" or "held-out", there were and why their pairs were left out) or if more than
+// kMaxNonFiniteFraction of the pairs are not finite.
 CaptureModel buildUsableModel(const Capture& capture, const std::vector<CaptureImage>& images,
                               double minCos, const std::string& which);
 
