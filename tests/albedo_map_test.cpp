@@ -122,6 +122,7 @@ TEST(AlbedoMap, RecoversTexturedAlbedoAndSharedLobe) {
     expectLobeRecovered(fit, t.synthetic.truth, 1);
     EXPECT_LT(fit.rmse, 0.5 * fit.lambertianRmse) << "the lobe must explain the highlights";
     EXPECT_EQ(fit.kdAboveOne, 0u);
+    EXPECT_FALSE(fit.energyBoundExceeded);
     for (std::size_t i = 0; i < fit.kd.size(); ++i)
         if (fit.fitted[i]) {
             EXPECT_TRUE((fit.kdStd[i] > 0).all() && fit.kdStd[i].allFinite());
@@ -136,6 +137,7 @@ TEST(AlbedoMap, RelativeIntensitiesGiveScaledReflectancesAndTheSameExponent) {
     EXPECT_LT(t.albedoError(fit, 10), 0.02);
     expectLobeRecovered(fit, t.synthetic.truth, 10);
     EXPECT_GT(fit.kdAboveOne, 0u) << "kd + ks > 1 is counted, not refused";
+    EXPECT_TRUE(fit.energyBoundExceeded);
 }
 
 // Pixels near the rim see fewer lights above --min-cos than those facing the camera: with the

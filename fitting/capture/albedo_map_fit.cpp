@@ -28,6 +28,8 @@ constexpr double kGridStep = 0.5;
 constexpr double kLog2NTolerance = 1e-4;
 // The active set of kd_p = 0 settles in a few passes; this bounds a pathological case.
 constexpr int kMaxActiveSetPasses = 100;
+// More pixels than this fraction 3 standard errors beyond kd + ks = 1 is not chance.
+constexpr double kChanceFraction = 0.01;
 // A channel's lobe is seen when its ks is this many standard errors above zero.
 constexpr double kLobeSigmas = 3;
 
@@ -323,12 +325,14 @@ AlbedoMapFit fitAlbedoMap(const Capture& capture, const CaptureModel& model,
     for (std::size_t i = 0; i < pixels.pixel.size(); ++i) {
         out.kd[pixels.pixel[i]] = phong.kd[i];
         out.lambertianKd[pixels.pixel[i]] = lambertian.kd[i];
-        if ((phong.kd[i] + phong.ks > 1).any()) ++out.kdAboveOne;
     }
     const std::size_t values = 3 * pixels.pairs.size();
     out.rmse = std::sqrt(std::max(phong.sse, 0.0) / double(values));
     out.lambertianRmse = std::sqrt(std::max(lambertian.sse, 0.0) / double(values));
     standardErrors(pixels, solver, phong, out.n, options.grey, values, model.entries.size(), out);
+    for (std::uint32_t p : pixels.pixel)
+        if ((out.kd[p] - kLobeSigmas * out.kdStd[p] + out.ks > 1).any()) ++out.kdAboveOne;
+    out.energyBoundExceeded = double(out.kdAboveOne) > kChanceFraction * double(out.pixelsFitted);
     bool lobe = false;
     for (int c = 0; c < 3; ++c) lobe |= out.ks[c] > kLobeSigmas * out.ksStd[c];
     if (!lobe || !std::isfinite(out.nStd)) out.unconstrained.push_back("n");

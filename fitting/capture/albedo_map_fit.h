@@ -45,8 +45,12 @@ struct AlbedoMapFit {
     bool nAtBound = false;  // the residual's minimum lies at the end of the searched range of n
     double minN = 0, maxN = 0;
     double rmse = 0, lambertianRmse = 0;  // on the fitted pairs, per channel value
-    std::size_t kdAboveOne = 0;           // fitted pixels with kd + ks > 1 in some channel
-    int evaluations = 0;                  // residual evaluations of the search over n
+    // Fitted pixels with kd + ks > 1 in some channel by more than 3 of kd's standard errors; more
+    // than 1% of the fitted pixels is beyond chance: the images are brighter than the intensities
+    // allow an energy-conserving material to be.
+    std::size_t kdAboveOne = 0;
+    bool energyBoundExceeded = false;
+    int evaluations = 0;  // residual evaluations of the search over n
     double seconds = 0;
 };
 

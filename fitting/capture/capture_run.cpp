@@ -272,7 +272,8 @@ void writeAlbedoMapFit(const CaptureRun& run, const CaptureFitInputs& inputs, co
     report["kd_map"] = {{"exr", "kd.exr"},
                         {"png", "kd.png"},
                         {"fitted_pixels", m.pixelsFitted},
-                        {"kd_plus_ks_above_1", m.kdAboveOne}};
+                        {"kd_plus_ks_above_1", m.kdAboveOne},
+                        {"energy_bound_exceeded", m.energyBoundExceeded}};
     report["units"] =
         run.intensities == "calibrated"
             ? "kd and ks absolute (calibrated light intensities); no energy bound is imposed per "

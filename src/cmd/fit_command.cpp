@@ -179,9 +179,11 @@ void printAlbedoMapFit(const FitCli& a, const CaptureRun& run) {
                run.lights.size(), m.rmse, m.lambertianRmse);
     printLeftOut(run, fit.model);
     if (fit.holdout) printHoldout(run, *fit.holdout, "per-pixel Lambertian");
-    if (run.intensities == "calibrated" && m.kdAboveOne > 0)
+    if (run.intensities == "calibrated" && m.energyBoundExceeded)
         fmt::print(
-            "warning: {} pixels have kd + ks > 1 (no energy bound is imposed per pixel): brighter "
+            "warning: {} pixels have kd + ks > 1 beyond their noise (no energy bound is imposed "
+            "per "
+            "pixel): brighter "
             "than an energy-conserving material under light_intensities.txt; if the intensities "
             "are relative, say --intensities relative\n",
             m.kdAboveOne);
