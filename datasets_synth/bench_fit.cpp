@@ -73,13 +73,8 @@ std::vector<ParameterCheck> parameterChecks(const MaterialFit& m, const PhongMat
     return checks;
 }
 
-// Whether the fit lists `name` ("kd", "ks.g", "n") as unconstrained.
-bool held(const MaterialFit& m, const std::string& name) {
-    return std::find(m.unconstrained.begin(), m.unconstrained.end(), name) != m.unconstrained.end();
-}
-
 bool isHeld(const MaterialFit& m, const ParameterCheck& p) {
-    return held(m, p.group) || held(m, p.name);
+    return m.isUnconstrained(p.group) || m.isUnconstrained(p.name);
 }
 
 // Whether every parameter the fit did not hold lies within 3 of its standard errors of the truth
@@ -194,9 +189,9 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
         if (!finite(row.fit)) {
             row.failed = true;
             row.error = "non-finite result";
-        } else if (std::max({held(row.fit, "kd") ? 0 : row.errors.kd,
-                             held(row.fit, "ks") ? 0 : row.errors.ks,
-                             held(row.fit, "n") ? 0 : row.errors.n}) > o.failThreshold) {
+        } else if (std::max({row.fit.isUnconstrained("kd") ? 0 : row.errors.kd,
+                             row.fit.isUnconstrained("ks") ? 0 : row.errors.ks,
+                             row.fit.isUnconstrained("n") ? 0 : row.errors.n}) > o.failThreshold) {
             row.failed = true;
             row.error = fmt::format("relative error above {}", o.failThreshold);
         }
@@ -366,15 +361,16 @@ std::string cellText(const FitRow& r) {
     if (!r.returned) return "FAIL (threw)";
     const Errors sd = relativeStdOf(r.fit, r.sample->truth);
     const auto part = [&](const char* name, double error, double std) {
-        return held(r.fit, name) ? fmt::format("{} free", name)
-                                 : fmt::format("{} {}±{}", name, percent(error), percent(std));
+        return r.fit.isUnconstrained(name)
+                   ? fmt::format("{} free", name)
+                   : fmt::format("{} {}±{}", name, percent(error), percent(std));
     };
     const char* mark = r.verdict.withinTolerance && r.verdict.pass ? "ok"
                        : r.verdict.pass                            ? "ok (std)"
                                                                    : "FAIL";
     // No lobe in the truth: ks's error is its value, absolute.
     const std::string ks =
-        (r.sample->truth.ks == 0).all() && !held(r.fit, "ks")
+        (r.sample->truth.ks == 0).all() && !r.fit.isUnconstrained("ks")
             ? fmt::format("ks {:.2g}±{:.2g}", r.fit.ks.maxCoeff(), r.fit.ksStd.maxCoeff())
             : part("ks", r.errors.ks, sd.ks);
     return fmt::format("{}: {}, {}, {}; {:.1f} s", mark, part("kd", r.errors.kd, sd.kd), ks,

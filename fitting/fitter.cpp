@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 
 #include "error.h"
@@ -24,6 +25,10 @@ PhongMaterial MaterialFit::material() const {
     m.ks = ks;
     m.n = n;
     return m;
+}
+
+bool MaterialFit::isUnconstrained(const std::string& name) const {
+    return std::find(unconstrained.begin(), unconstrained.end(), name) != unconstrained.end();
 }
 
 namespace {

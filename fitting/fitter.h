@@ -49,6 +49,8 @@ struct MaterialFit {
     std::vector<std::string> unconstrained;
 
     PhongMaterial material() const;
+    // Whether `name` ("kd", "ks.g", "n") is listed in `unconstrained`.
+    bool isUnconstrained(const std::string& name) const;
 };
 
 // The free parameters whose standard error is as large as the parameter itself (kd and ks:

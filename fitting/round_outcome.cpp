@@ -43,23 +43,20 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
 }
 
 std::vector<std::string> unresolvedParameters(const MaterialFit& fit) {
-    const auto listed = [&](const std::string& name) {
-        return std::find(fit.unconstrained.begin(), fit.unconstrained.end(), name) !=
-               fit.unconstrained.end();
-    };
     std::vector<std::string> names;
     for (const char* name : {"kd", "ks"}) {
         const bool diffuse = name[1] == 'd';
         const Color3& value = diffuse ? fit.kd : fit.ks;
         const Color3& std = diffuse ? fit.kdStd : fit.ksStd;
         for (int c = 0; c < 3; ++c)
-            if (!listed(name) && !listed(fmt::format("{}.{}", name, "rgb"[c])) &&
+            if (!fit.isUnconstrained(name) &&
+                !fit.isUnconstrained(fmt::format("{}.{}", name, "rgb"[c])) &&
                 std[c] >= std::max(value[c], kReflectanceFloor)) {
                 names.push_back(name);
                 break;
             }
     }
-    if (!listed("n") && fit.nStd >= fit.n) names.push_back("n");
+    if (!fit.isUnconstrained("n") && fit.nStd >= fit.n) names.push_back("n");
     return names;
 }
 

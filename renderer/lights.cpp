@@ -29,37 +29,41 @@ Vec2d squareToUniformDisk(double u1, double u2) {
     return Vec2d(r * std::cos(phi), r * std::sin(phi));
 }
 
-// 1 - cos(theta_max) of the cone of directions from p that meet the sphere; none when p is not
-// outside it. Written as sin^2 / (1 + cos), which keeps its digits for a light of any size.
-std::optional<double> sphereCone(const ShapeDesc& sphere, const Vec3d& p) {
-    const double dc2 = (sphere.center - p).squaredNorm();
+// The cone of directions from p that meet the sphere.
+struct SphereCone {
+    Vec3d axis;             // unit, from p towards the centre
+    double sin2Max;         // sin^2(theta_max) = r^2 / distance^2
+    double oneMinusCosMax;  // 1 - cos(theta_max), as sin^2 / (1 + cos): its digits for any size
+};
+
+// The cone of directions from p that meet the sphere; none when p is not outside it.
+std::optional<SphereCone> sphereCone(const ShapeDesc& sphere, const Vec3d& p) {
+    const Vec3d toCentre = sphere.center - p;
+    const double dc2 = toCentre.squaredNorm();
     const double r2 = sphere.radius * sphere.radius;
     if (!(dc2 > r2 * (1 + 1e-9))) return std::nullopt;
     const double sin2Max = r2 / dc2;
-    return sin2Max / (1 + std::sqrt(1 - sin2Max));
+    return SphereCone{toCentre / std::sqrt(dc2), sin2Max, sin2Max / (1 + std::sqrt(1 - sin2Max))};
 }
 
 // A direction uniform in the cone from p around the sphere's centre, and where it meets the sphere
 // first (pbrt-v4, Sphere::Sample with a reference point): every sample lands on the visible cap,
 // with a constant solid-angle density, which area sampling of a large sphere is far from.
-LightSample sampleSphereCone(const ShapeDesc& sphere, const Vec3d& p, double oneMinusCosMax,
+LightSample sampleSphereCone(const ShapeDesc& sphere, const Vec3d& p, const SphereCone& cone,
                              const Vec3d& u, const Color3& radiance) {
-    const Vec3d toCentre = sphere.center - p;
-    const double dc = toCentre.norm();
-    const double sin2Max = (sphere.radius / dc) * (sphere.radius / dc);
     // The angle theta from the axis, then alpha: the angle at the centre between the axis back
     // towards p and the point where that direction meets the sphere.
-    const double oneMinusCos = oneMinusCosMax * u.x();
+    const double oneMinusCos = cone.oneMinusCosMax * u.x();
     const double cosTheta = 1 - oneMinusCos;
     const double sin2Theta = oneMinusCos * (2 - oneMinusCos);
-    const double cosAlpha = sin2Theta / std::sqrt(sin2Max) +
-                            cosTheta * std::sqrt(std::max(0.0, 1 - sin2Theta / sin2Max));
+    const double cosAlpha = sin2Theta / std::sqrt(cone.sin2Max) +
+                            cosTheta * std::sqrt(std::max(0.0, 1 - sin2Theta / cone.sin2Max));
     const double sinAlpha = std::sqrt(std::max(0.0, 1 - cosAlpha * cosAlpha));
-    const Frame<double> frame(toCentre / dc);
+    const Frame<double> frame(cone.axis);
     const Vec3d n = frame.toWorld(-sphericalDirection(sinAlpha, cosAlpha, 2 * kPi * u.y()));
     const Vec3d d = sphere.center + sphere.radius * n - p;
     const double dist = d.norm();
-    return LightSample{d / dist, dist, radiance, 1 / (2 * kPi * oneMinusCosMax), false};
+    return LightSample{d / dist, dist, radiance, 1 / (2 * kPi * cone.oneMinusCosMax), false};
 }
 
 Vec3d triangleVertex(const TriangleMesh& m, std::size_t tri, int k) {
@@ -150,8 +154,8 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
     }
     const ShapeDesc& shape = scene_.shapes[l.shape];
     if (l.type == Light::Type::Sphere) {
-        if (const std::optional<double> oneMinusCos = sphereCone(shape, p))
-            return sampleSphereCone(shape, p, *oneMinusCos, u, l.value);
+        if (const std::optional<SphereCone> cone = sphereCone(shape, p))
+            return sampleSphereCone(shape, p, *cone, u, l.value);
     }
     // Area light: a uniform point on the shape, then convert the area density to solid angle.
     Vec3d q, n;
@@ -185,8 +189,8 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
 double LightSet::pdfArea(int index, const Vec3d& p, const Hit& hit) const {
     const Light& l = lights_[index];
     if (l.type == Light::Type::Sphere)
-        if (const std::optional<double> oneMinusCos = sphereCone(scene_.shapes[l.shape], p))
-            return 1 / (2 * kPi * *oneMinusCos);
+        if (const std::optional<SphereCone> cone = sphereCone(scene_.shapes[l.shape], p))
+            return 1 / (2 * kPi * cone->oneMinusCosMax);
     const Vec3d d = hit.p - p;
     const double cosLight = std::abs(hit.ng.dot(d.normalized()));
     if (!(cosLight > 0)) return 0;
