@@ -100,7 +100,7 @@ struct TexturedCapture {
     }
 };
 
-void expectLobeRecovered(const AlbedoMapFit& fit, const PhongMaterial& truth, double scale) {
+void expectLobeRecovered(const LobeFit& fit, const PhongMaterial& truth, double scale) {
     for (int c = 0; c < 3; ++c) {
         const double ks = scale * truth.ks[c];
         EXPECT_NEAR(fit.ks[c], ks, 0.02 * ks) << "channel " << c;
@@ -119,7 +119,8 @@ TEST(AlbedoMap, RecoversTexturedAlbedoAndSharedLobe) {
     EXPECT_EQ(t.capture.badNormals, 3u);
     EXPECT_GT(fit.pixelsFitted, 0.9 * double(t.capture.pixels.size()));
     EXPECT_LT(t.albedoError(fit, 1), 0.02);
-    expectLobeRecovered(fit, t.synthetic.truth, 1);
+    ASSERT_EQ(fit.lobes.size(), 1u);
+    expectLobeRecovered(fit.lobes[0], t.synthetic.truth, 1);
     EXPECT_LT(fit.rmse, 0.5 * fit.lambertianRmse) << "the lobe must explain the highlights";
     EXPECT_EQ(fit.kdAboveOne, 0u);
     EXPECT_FALSE(fit.energyBoundExceeded);
@@ -135,7 +136,7 @@ TEST(AlbedoMap, RelativeIntensitiesGiveScaledReflectancesAndTheSameExponent) {
     const TexturedCapture t(0.1);
     const AlbedoMapFit fit = t.fit();
     EXPECT_LT(t.albedoError(fit, 10), 0.02);
-    expectLobeRecovered(fit, t.synthetic.truth, 10);
+    expectLobeRecovered(fit.lobes[0], t.synthetic.truth, 10);
     EXPECT_GT(fit.kdAboveOne, 0u) << "kd + ks > 1 is counted, not refused";
     EXPECT_TRUE(fit.energyBoundExceeded);
 }
@@ -174,8 +175,53 @@ TEST(AlbedoMap, NoLobeLeavesTheExponentUnconstrained) {
     const TexturedCapture t(1, Color3::Zero());
     const AlbedoMapFit fit = t.fit();
     EXPECT_LT(t.albedoError(fit, 1), 0.02);
-    EXPECT_EQ(fit.unconstrained, std::vector<std::string>{"n"});
-    for (int c = 0; c < 3; ++c) EXPECT_LT(fit.ks[c], 3 * fit.ksStd[c] + 1e-12);
+    const LobeFit& lobe = fit.lobes[0];
+    EXPECT_EQ(lobe.unconstrained, std::vector<std::string>{"n"});
+    EXPECT_FALSE(fit.converged());
+    for (int c = 0; c < 3; ++c) EXPECT_LT(lobe.ks[c], 3 * lobe.ksStd[c] + 1e-12);
+}
+
+// Two materials, each with its own lobe (a bright matte-ish leaf, a dark sharp-lobed glaze): with
+// --materials 2 the clustering finds them (numbered by brightness) and each lobe is recovered as
+// one material alone would be; one shared lobe explains the images worse.
+TEST(AlbedoMap, TwoMaterialsAreFoundAndEachLobeRecovered) {
+    const auto leafAt = [](int x, int y) { return (x / 8 + y / 8) % 2 == 0; };
+    PhongMaterial leaf, glaze;
+    leaf.ks = Color3::Constant(0.15), leaf.n = 200;
+    glaze.ks = Color3::Constant(0.3), glaze.n = 30;
+    const auto materialAt = [&](int x, int y) {
+        const double shade = 0.9 + 0.1 * std::sin(x / 5.0) * std::cos(y / 7.0);
+        PhongMaterial m = leafAt(x, y) ? leaf : glaze;
+        m.kd = shade * (leafAt(x, y) ? Color3(0.6, 0.35, 0.25) : Color3(0.15, 0.3, 0.45));
+        return m;
+    };
+    const test::TempDir dir("albedo_materials");
+    Synthetic synthetic;
+    synthetic.lights = kLights;
+    synthetic.materialAt = materialAt;
+    synthetic.write(dir.path());
+    const Capture capture = readCapture(dir.path().string());
+    const CaptureModel model =
+        buildCaptureModel(capture, readCaptureImages(capture, range(0, kLights - 1), {}, 2), 0.05);
+    AlbedoMapOptions options;
+    options.threads = 2;
+    options.materials = 2;
+    const AlbedoMapFit fit = fitAlbedoMap(capture, model, options);
+    ASSERT_EQ(fit.lobes.size(), 2u);
+    std::size_t right = 0;
+    for (std::size_t i = 0; i < capture.pixels.size(); ++i) {
+        const int x = int(capture.pixels[i] % std::uint32_t(capture.width));
+        const int y = int(capture.pixels[i] / std::uint32_t(capture.width));
+        right += fit.material[i] == (leafAt(x, y) ? 1 : 0);  // the glaze is darker: material 1
+    }
+    EXPECT_GT(double(right), 0.98 * double(capture.pixels.size()));
+    expectLobeRecovered(fit.lobes[0], glaze, 1);
+    expectLobeRecovered(fit.lobes[1], leaf, 1);
+
+    options.materials = 1;
+    EXPECT_GT(fitAlbedoMap(capture, model, options).rmse, 1.5 * fit.rmse);
+    options.materials = kMaxMaterials + 1;
+    EXPECT_THROW(fitAlbedoMap(capture, model, options), Error);
 }
 
 // Odd lights fitted, even lights predicted: the shared lobe must beat the per-pixel Lambertian
@@ -198,11 +244,11 @@ void expectPhongPredictsBetter(const std::string& dir, const ReadOptions& decodi
     std::size_t better = 0;
     for (const LightPrediction& l : h.perLight) better += l.phong.rmse < l.lambertian.rmse;
     EXPECT_GE(better, 40u);
-    const AlbedoMapFit& a = fit.fit;
+    const LobeFit& a = fit.fit.lobes[0];
     EXPECT_TRUE(a.unconstrained.empty());
     ASSERT_TRUE(std::isfinite(a.nStd));
 
-    const AlbedoMapFit b = fitCaptureAlbedoMap(capture, even, {}, 0.05, options).fit;
+    const LobeFit b = fitCaptureAlbedoMap(capture, even, {}, 0.05, options).fit.lobes[0];
     EXPECT_LT(std::abs(a.n - b.n), 2 * std::hypot(a.nStd, b.nStd))
         << "n = " << a.n << " ± " << a.nStd << " (odd lights) vs " << b.n << " ± " << b.nStd
         << " (even lights)";

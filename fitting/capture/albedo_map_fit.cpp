@@ -16,6 +16,7 @@
 
 #include "error.h"
 #include "grid_search.h"
+#include "material_clusters.h"
 #include "phong_brdf.h"
 
 namespace phongfit {
@@ -46,17 +47,19 @@ struct PixelPairs {
     std::vector<Pair> pairs;
 };
 
-PixelPairs groupByPixel(const CaptureModel& model, std::size_t maskPixels, int minPairs,
-                        std::vector<std::uint8_t>& fitted) {
+// The pairs of the pixels of material `which` that have at least minPairs pairs (marked in
+// `fitted`).
+PixelPairs groupByPixel(const CaptureModel& model, const std::vector<std::uint8_t>& material,
+                        std::uint8_t which, int minPairs, std::vector<std::uint8_t>& fitted) {
+    const std::size_t maskPixels = material.size();
     std::vector<std::size_t> count(maskPixels, 0);
     for (const auto& entries : model.entries)
         for (std::uint32_t p : entries) ++count[p];
     PixelPairs out;
     std::vector<std::size_t> at(maskPixels, 0);
-    fitted.assign(maskPixels, 0);
     out.start.push_back(0);
     for (std::size_t p = 0; p < maskPixels; ++p) {
-        if (count[p] < std::size_t(minPairs)) continue;
+        if (material[p] != which || count[p] < std::size_t(minPairs)) continue;
         fitted[p] = 1;
         at[p] = out.start.back();
         out.pixel.push_back(std::uint32_t(p));
@@ -68,7 +71,7 @@ PixelPairs groupByPixel(const CaptureModel& model, std::size_t maskPixels, int m
         const std::vector<float>& rgb = model.observations[v].rgb;
         for (std::size_t k = 0; k < model.entries[v].size(); ++k) {
             const std::uint32_t p = model.entries[v][k];
-            if (!fitted[p]) continue;
+            if (!fitted[p] || material[p] != which) continue;
             out.pairs[at[p]++] = {ps.terms[k].constant[0], ps.vertices[k].logCos,
                                   Color<float>(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]),
                                   std::uint32_t(v)};
@@ -206,7 +209,8 @@ double bestExponent(Solver& solver, int& evaluations) {
 // where the exponents fitted from two halves of the lights differ by far more than the first says.
 // Parameters at a bound (ks = 0, kd_p = 0) are held.
 void standardErrors(const PixelPairs& pixels, const Solver& solver, const Solution& s, double n,
-                    bool grey, std::size_t values, std::size_t views, AlbedoMapFit& out) {
+                    bool grey, std::size_t views, LobeFit& out, std::vector<Color3>& kdStd) {
+    const std::size_t values = 3 * pixels.pairs.size();
     // Parameters: ks per channel (or one), then n.
     const int ksCount = grey ? 1 : 3, nIndex = ksCount;
     const auto ksIndex = [&](int c) { return grey ? 0 : c; };
@@ -287,7 +291,7 @@ void standardErrors(const PixelPairs& pixels, const Solver& solver, const Soluti
     out.nStd = lobe ? stdOf(nIndex) : std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < pixels.pixel.size(); ++i)
         for (int c = 0; c < 3; ++c)
-            out.kdStd[pixels.pixel[i]][c] = std::sqrt(sigma2 / solver.fixed(i).aa);
+            kdStd[pixels.pixel[i]][c] = std::sqrt(sigma2 / solver.fixed(i).aa);
 }
 
 }  // namespace
@@ -295,54 +299,81 @@ void standardErrors(const PixelPairs& pixels, const Solver& solver, const Soluti
 AlbedoMapFit fitAlbedoMap(const Capture& capture, const CaptureModel& model,
                           const AlbedoMapOptions& options) {
     const auto started = std::chrono::steady_clock::now();
+    if (options.materials < 1 || options.materials > kMaxMaterials)
+        throw Error(
+            fmt::format("--materials {}: must be 1 to {}", options.materials, kMaxMaterials));
     std::unique_ptr<tbb::global_control> threads;
     if (options.threads > 0)
         threads = std::make_unique<tbb::global_control>(
             tbb::global_control::max_allowed_parallelism, std::size_t(options.threads));
     AlbedoMapFit out;
     const std::size_t maskPixels = capture.pixels.size();
-    const PixelPairs pixels = groupByPixel(model, maskPixels, options.minPairs, out.fitted);
-    out.pixelsFitted = pixels.pixel.size();
-    out.pixelsTooFewPairs = maskPixels - out.pixelsFitted;
-    if (out.pixelsFitted == 0)
-        throw Error(fmt::format(
-            "capture '{}': no mask pixel has {} usable pairs, the least a per-pixel albedo needs",
-            capture.dir, options.minPairs));
-    out.pairs = pixels.pairs.size();
     out.minN = std::exp2(kMinLog2N);
     out.maxN = std::exp2(kMaxLog2N);
-
-    Solver solver(pixels, options.grey);
-    out.n = bestExponent(solver, out.evaluations);
-    out.nAtBound = std::log2(out.n) < kMinLog2N + 2 * kGridStep ||
-                   std::log2(out.n) > kMaxLog2N - 2 * kGridStep;
-    const Solution phong = solver.solve(out.n, true);
-    const Solution lambertian = solver.solve(out.n, false);
-    out.ks = phong.ks;
     out.kd.assign(maskPixels, Color3::Zero());
     out.kdStd.assign(maskPixels, Color3::Zero());
     out.lambertianKd.assign(maskPixels, Color3::Zero());
-    for (std::size_t i = 0; i < pixels.pixel.size(); ++i) {
-        out.kd[pixels.pixel[i]] = phong.kd[i];
-        out.lambertianKd[pixels.pixel[i]] = lambertian.kd[i];
+    out.fitted.assign(maskPixels, 0);
+    if (options.materials == 1) {
+        out.material.assign(maskPixels, 0);
+    } else {
+        AlbedoMapOptions shared = options;
+        shared.materials = 1;
+        out.material = clusterMaterials(fitAlbedoMap(capture, model, shared), options.materials);
     }
-    const std::size_t values = 3 * pixels.pairs.size();
-    out.rmse = std::sqrt(std::max(phong.sse, 0.0) / double(values));
-    out.lambertianRmse = std::sqrt(std::max(lambertian.sse, 0.0) / double(values));
-    standardErrors(pixels, solver, phong, out.n, options.grey, values, model.entries.size(), out);
-    for (std::uint32_t p : pixels.pixel)
-        if ((out.kd[p] - kLobeSigmas * out.kdStd[p] + out.ks > 1).any()) ++out.kdAboveOne;
+    double sse = 0, lambertianSse = 0;
+    for (int m = 0; m < options.materials; ++m) {
+        const PixelPairs pixels =
+            groupByPixel(model, out.material, std::uint8_t(m), options.minPairs, out.fitted);
+        if (pixels.pixel.empty())
+            throw Error(fmt::format(
+                "capture '{}': no pixel of material {} of {} has {} usable pairs, the least a "
+                "per-pixel albedo needs{}",
+                capture.dir, m + 1, options.materials, options.minPairs,
+                options.materials > 1 ? " (fewer --materials?)" : ""));
+        LobeFit lobe;
+        lobe.pixels = pixels.pixel.size();
+        Solver solver(pixels, options.grey);
+        lobe.n = bestExponent(solver, lobe.evaluations);
+        lobe.nAtBound = std::log2(lobe.n) < kMinLog2N + 2 * kGridStep ||
+                        std::log2(lobe.n) > kMaxLog2N - 2 * kGridStep;
+        const Solution phong = solver.solve(lobe.n, true);
+        const Solution lambertian = solver.solve(lobe.n, false);
+        lobe.ks = phong.ks;
+        for (std::size_t i = 0; i < pixels.pixel.size(); ++i) {
+            out.kd[pixels.pixel[i]] = phong.kd[i];
+            out.lambertianKd[pixels.pixel[i]] = lambertian.kd[i];
+        }
+        sse += phong.sse, lambertianSse += lambertian.sse;
+        out.pairs += pixels.pairs.size();
+        out.pixelsFitted += pixels.pixel.size();
+        standardErrors(pixels, solver, phong, lobe.n, options.grey, model.entries.size(), lobe,
+                       out.kdStd);
+        bool seen = false;
+        for (int c = 0; c < 3; ++c) seen |= lobe.ks[c] > kLobeSigmas * lobe.ksStd[c];
+        if (!seen || !std::isfinite(lobe.nStd)) lobe.unconstrained.push_back("n");
+        for (std::uint32_t p : pixels.pixel)
+            if ((out.kd[p] - kLobeSigmas * out.kdStd[p] + lobe.ks > 1).any()) ++out.kdAboveOne;
+        out.lobes.push_back(std::move(lobe));
+    }
+    out.pixelsTooFewPairs = maskPixels - out.pixelsFitted;
     out.energyBoundExceeded = double(out.kdAboveOne) > kChanceFraction * double(out.pixelsFitted);
-    bool lobe = false;
-    for (int c = 0; c < 3; ++c) lobe |= out.ks[c] > kLobeSigmas * out.ksStd[c];
-    if (!lobe || !std::isfinite(out.nStd)) out.unconstrained.push_back("n");
+    const double values = 3.0 * double(out.pairs);
+    out.rmse = std::sqrt(std::max(sse, 0.0) / values);
+    out.lambertianRmse = std::sqrt(std::max(lambertianSse, 0.0) / values);
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     return out;
 }
 
+bool AlbedoMapFit::converged() const {
+    return std::all_of(lobes.begin(), lobes.end(),
+                       [](const LobeFit& l) { return l.unconstrained.empty(); });
+}
+
 Color3 predictAlbedoMap(const AlbedoMapFit& fit, std::uint32_t pixel, double cosine,
                         double logCos) {
-    return fit.kd[pixel] * diffuseBasis(cosine) + fit.ks * lobeBasis(cosine, logCos, fit.n);
+    const LobeFit& lobe = fit.lobes[fit.material[pixel]];
+    return fit.kd[pixel] * diffuseBasis(cosine) + lobe.ks * lobeBasis(cosine, logCos, lobe.n);
 }
 
 HoldoutPrediction predictCapture(const CaptureModel& model, const AlbedoMapFit& fit) {

@@ -257,18 +257,43 @@ void writeAlbedoMap(const Capture& capture, const std::vector<Color3>& kd, const
     writePng(image, (out / "kd.png").string(), *white > 0 ? 1 / *white : 1.0);
 }
 
+// materials.png: each mask pixel's material as a grey level, darkest for material 1; black outside.
+void writeMaterialMap(const Capture& capture, const AlbedoMapFit& fit, const fs::path& out) {
+    cv::Mat map(capture.height, capture.width, CV_8UC3, cv::Scalar(0, 0, 0));
+    const double step = 200.0 / double(fit.lobes.size() - 1);
+    for (std::size_t i = 0; i < capture.pixels.size(); ++i) {
+        const int level = 55 + int(std::lround(step * fit.material[i]));
+        map.at<cv::Vec3b>(int(capture.pixels[i] / std::uint32_t(capture.width)),
+                          int(capture.pixels[i] % std::uint32_t(capture.width))) =
+            cv::Vec3b(uchar(level), uchar(level), uchar(level));
+    }
+    writePng(map, (out / "materials.png").string());
+}
+
 void writeAlbedoMapFit(const CaptureRun& run, const CaptureFitInputs& inputs, const fs::path& out) {
     const AlbedoMapCaptureFit& fit = *run.albedoMap;
     const AlbedoMapFit& m = fit.fit;
     nlohmann::json report;
     report["albedo"] = "per-pixel";
-    report["ks"] = rgb(m.ks);
-    report["ks_std"] = rgb(m.ksStd);
-    report["n"] = m.n;
-    report["n_std"] = std::isfinite(m.nStd) ? nlohmann::json(m.nStd) : nlohmann::json(nullptr);
-    report["unconstrained"] = m.unconstrained;
-    report["n_at_search_bound"] = m.nAtBound;
+    report["lobes"] = nlohmann::json::array();
+    for (std::size_t i = 0; i < m.lobes.size(); ++i) {
+        const LobeFit& lobe = m.lobes[i];
+        report["lobes"].push_back(
+            {{"material", i + 1},
+             {"pixels", lobe.pixels},
+             {"ks", rgb(lobe.ks)},
+             {"ks_std", rgb(lobe.ksStd)},
+             {"n", lobe.n},
+             {"n_std", std::isfinite(lobe.nStd) ? nlohmann::json(lobe.nStd) : nlohmann::json()},
+             {"unconstrained", lobe.unconstrained},
+             {"n_at_search_bound", lobe.nAtBound},
+             {"evaluations", lobe.evaluations}});
+    }
+    if (m.lobes.size() == 1)  // one lobe for the object: its fields at the top too
+        for (const char* key : {"ks", "ks_std", "n", "n_std", "unconstrained", "n_at_search_bound"})
+            report[key] = report["lobes"][0][key];
     report["n_search_range"] = {m.minN, m.maxN};
+    if (m.lobes.size() > 1) report["material_map"] = "materials.png";
     report["kd_map"] = {{"exr", "kd.exr"},
                         {"png", "kd.png"},
                         {"fitted_pixels", m.pixelsFitted},
@@ -283,10 +308,13 @@ void writeAlbedoMapFit(const CaptureRun& run, const CaptureFitInputs& inputs, co
     report["rmse"] = m.rmse;
     report["lambertian_rmse"] = m.lambertianRmse;
     report["time_seconds"] = m.seconds;
-    report["evaluations"] = m.evaluations;
     describeCapture(run, inputs, fit.model, report);
-    report["model"] = modelJson("per-pixel", {"diffuse (per pixel)", "specular (shared)"},
-                                {"diffuse (per pixel)"}, inputs, "l2");
+    report["model"] =
+        modelJson("per-pixel",
+                  {"diffuse (per pixel)",
+                   m.lobes.size() == 1 ? "specular (shared)" : "specular (one per material)"},
+                  {"diffuse (per pixel)"}, inputs, "l2");
+    report["model"]["materials"] = m.lobes.size();
     report["model"]["min_pairs_per_pixel"] = AlbedoMapOptions{}.minPairs;
     report["pixels"] = {{"used", m.pixelsFitted},
                         {"bad_normals", run.capture.badNormals},
@@ -307,6 +335,7 @@ void writeAlbedoMapFit(const CaptureRun& run, const CaptureFitInputs& inputs, co
     const cv::Mat compare = compareTypicalLight(run, fit.model, fit.heldOut, fit.holdout, rows,
                                                 {"phong", "lambertian per pixel"}, report);
     writeAlbedoMap(run.capture, m.kd, out);
+    if (m.lobes.size() > 1) writeMaterialMap(run.capture, m, out);
     writeReport(out, report, compare);
 }
 
@@ -344,6 +373,7 @@ CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet) {
         AlbedoMapOptions options;
         options.grey = inputs.fit.fit.grey;
         options.threads = inputs.fit.fit.threads;
+        options.materials = inputs.materials;
         run.albedoMap = fitCaptureAlbedoMap(run.capture, run.images, run.heldOutImages,
                                             inputs.fit.minCos, options);
     } else {

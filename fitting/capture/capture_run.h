@@ -21,6 +21,7 @@ struct CaptureFitInputs {
     CaptureReadOptions read;
     CaptureFitOptions fit;
     bool perPixelAlbedo = false;  // --albedo per-pixel: albedo_map_fit.h instead of one kd
+    int materials = 1;            // with perPixelAlbedo: AlbedoMapOptions::materials
     // "calibrated", "relative" (CaptureFitOptions::relativeIntensities), or "auto": relative when
     // every light has the same intensity (a capture whose file says only 1 1 1).
     std::string intensities = "auto";
@@ -43,8 +44,9 @@ struct CaptureRun {
 CaptureRun runCaptureFit(const CaptureFitInputs& inputs, bool quiet);
 
 // DIR/fit.json and DIR/compare.png (a typical held-out light, or the middle fitted one), and with
-// an albedo map DIR/kd.exr (linear, 0 outside the fitted pixels) and DIR/kd.png (a preview); DIR is
-// created. `loss` is the loss' name as fit.json records it.
+// an albedo map DIR/kd.exr (linear, 0 outside the fitted pixels), DIR/kd.png (a preview) and with
+// several materials DIR/materials.png; DIR is created. `loss` is the loss' name as fit.json records
+// it.
 void writeCaptureFit(const CaptureRun& run, const CaptureFitInputs& inputs, const std::string& loss,
                      const std::string& dir);
 

@@ -40,6 +40,7 @@ struct FitCli {
     std::uint64_t seed = 0;
     // Capture fits.
     std::string capture, lights, holdout, albedo = "uniform", intensities = "auto";
+    int materialCount = 1;
     double minCos = 0.05;
 };
 
@@ -162,15 +163,28 @@ void printUniformFit(const FitCli& a, const CaptureRun& run) {
 void printAlbedoMapFit(const FitCli& a, const CaptureRun& run) {
     const AlbedoMapCaptureFit& fit = *run.albedoMap;
     const AlbedoMapFit& m = fit.fit;
-    const std::string n = std::isfinite(m.nStd) ? fmt::format("{:.5g} ± {:.2g}", m.n, m.nStd)
-                                                : fmt::format("{:.5g}", m.n);
-    fmt::print(
-        "capture, per-pixel albedo: ks = {}, n = {}{}{}\n", formatColor(m.ks, m.ksStd, a.grey), n,
-        m.unconstrained.empty()
-            ? ""
-            : fmt::format("  (unconstrained: {})", fmt::join(m.unconstrained, ", ")),
-        m.nAtBound ? fmt::format("  (at the end of the searched range {:g}-{:g})", m.minN, m.maxN)
-                   : "");
+    const auto lobeText = [&](const LobeFit& lobe) {
+        const std::string n = std::isfinite(lobe.nStd)
+                                  ? fmt::format("{:.5g} ± {:.2g}", lobe.n, lobe.nStd)
+                                  : fmt::format("{:.5g}", lobe.n);
+        return fmt::format(
+            "ks = {}, n = {}{}{}", formatColor(lobe.ks, lobe.ksStd, a.grey), n,
+            lobe.unconstrained.empty()
+                ? ""
+                : fmt::format("  (unconstrained: {})", fmt::join(lobe.unconstrained, ", ")),
+            lobe.nAtBound
+                ? fmt::format("  (at the end of the searched range {:g}-{:g})", m.minN, m.maxN)
+                : "");
+    };
+    if (m.lobes.size() == 1) {
+        fmt::print("capture, per-pixel albedo: {}\n", lobeText(m.lobes[0]));
+    } else {
+        fmt::print("capture, per-pixel albedo, {} materials -> {}\n", m.lobes.size(),
+                   (std::filesystem::path(a.output) / "materials.png").string());
+        for (std::size_t i = 0; i < m.lobes.size(); ++i)
+            fmt::print("  material {} ({} pixels): {}\n", i + 1, m.lobes[i].pixels,
+                       lobeText(m.lobes[i]));
+    }
     fmt::print("kd map of {} pixels -> {}; {} pixel{} left out with fewer than {} usable pairs\n",
                m.pixelsFitted, (std::filesystem::path(a.output) / "kd.exr").string(),
                m.pixelsTooFewPairs, m.pixelsTooFewPairs == 1 ? "" : "s",
@@ -182,13 +196,12 @@ void printAlbedoMapFit(const FitCli& a, const CaptureRun& run) {
     if (run.intensities == "calibrated" && m.energyBoundExceeded)
         fmt::print(
             "warning: {} pixels have kd + ks > 1 beyond their noise (no energy bound is imposed "
-            "per "
-            "pixel): brighter "
-            "than an energy-conserving material under light_intensities.txt; if the intensities "
-            "are relative, say --intensities relative\n",
+            "per pixel): brighter than an energy-conserving material under "
+            "light_intensities.txt; if the intensities are relative, say --intensities "
+            "relative\n",
             m.kdAboveOne);
-    fmt::print("{} in {:.2f} s -> {}\n", m.unconstrained.empty() ? "converged" : "not converged",
-               m.seconds, (std::filesystem::path(a.output) / "fit.json").string());
+    fmt::print("{} in {:.2f} s -> {}\n", m.converged() ? "converged" : "not converged", m.seconds,
+               (std::filesystem::path(a.output) / "fit.json").string());
 }
 
 void runCaptureFitCommand(const FitCli& a) {
@@ -201,6 +214,9 @@ void runCaptureFitCommand(const FitCli& a) {
     in.fit.fit = fitOptions(a);
     in.perPixelAlbedo = a.albedo == "per-pixel";
     in.intensities = a.intensities;
+    in.materials = a.materialCount;
+    if (a.materialCount != 1 && !in.perPixelAlbedo)
+        throw Error(fmt::format("--materials {}: applies to --albedo per-pixel", a.materialCount));
     if (in.perPixelAlbedo && a.loss != "l2")
         throw Error(
             fmt::format("--loss {}: --albedo per-pixel fits least squares (l2) only", a.loss));
@@ -298,6 +314,11 @@ void addFitCommand(CLI::App& app) {
                      "textured object) with one shared ks and n, written to kd.exr")
         ->check(CLI::IsMember({"uniform", "per-pixel"}))
         ->capture_default_str();
+    capture
+        ->add_option("--materials", a->materialCount,
+                     "with --albedo per-pixel: K materials, each with its own ks and n, found by "
+                     "clustering the albedo (default 1: one lobe for the object)")
+        ->check(CLI::Range(1, kMaxMaterials));
     capture
         ->add_option("--intensities", a->intensities,
                      "calibrated: light_intensities.txt is absolute (kd + ks <= 1); relative: "

@@ -99,6 +99,24 @@ TEST_F(CaptureCommand, PerPixelAlbedoWritesTheMapAndTheHoldoutComparison) {
     EXPECT_TRUE((kd.at(0, 0) == 0).all());
     EXPECT_FALSE(cv::imread(out("map/kd.png")).empty());
     EXPECT_FALSE(cv::imread(out("map/compare.png")).empty());
+    EXPECT_FALSE(fs::exists(out("map/materials.png")));
+
+    // --materials 2: a lobe per material (here both the truth's) and the material map.
+    const auto k = run({"fit", "--capture", dir_.path().string(), "--albedo", "per-pixel",
+                        "--materials", "2", "--threads", "2", "-o", out("two"), "--quiet"});
+    ASSERT_EQ(k.exitCode, 0) << k.err;
+    EXPECT_NE(k.out.find("  material 2 ("), std::string::npos) << k.out;
+    const auto two = nlohmann::json::parse(std::ifstream(out("two/fit.json")));
+    ASSERT_EQ(two["lobes"].size(), 2u);
+    EXPECT_EQ(two["model"]["materials"], 2);
+    EXPECT_FALSE(two.contains("n")) << "with several lobes, none stands for the object";
+    for (const auto& lobe : two["lobes"])
+        EXPECT_NEAR(lobe["n"].get<double>(), truth.truth.n, 0.1 * truth.truth.n);
+    EXPECT_EQ(two["lobes"][0]["pixels"].get<int>() + two["lobes"][1]["pixels"].get<int>(),
+              two["kd_map"]["fitted_pixels"].get<int>());
+    const cv::Mat materials = cv::imread(out("two/materials.png"));
+    ASSERT_FALSE(materials.empty());
+    EXPECT_EQ(materials.cols, Synthetic::kSize);
 }
 
 // A light_intensities.txt with one value for every light reads as relative intensities: kd and
@@ -229,6 +247,8 @@ TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
          "--albedo per-pixel fits least squares"},
         {{"--capture", dir, "--albedo", "texture"}, "--albedo"},
         {{"--capture", dir, "--intensities", "guessed"}, "--intensities"},
+        {{"--capture", dir, "--materials", "2"}, "--materials 2: applies to --albedo per-pixel"},
+        {{"--capture", dir, "--albedo", "per-pixel", "--materials", "17"}, "--materials"},
         {{"--view", "a.xml:b.exr", "--albedo", "per-pixel"}, "--albedo applies to --capture"},
     };
     for (const Case& c : cases) {

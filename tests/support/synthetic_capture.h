@@ -26,6 +26,8 @@ struct Synthetic {
     PhongMaterial truth;
     // If set, the diffuse albedo at pixel (x, y) instead of truth.kd: a textured object.
     std::function<Color3(int x, int y)> albedo;
+    // If set, the whole material at pixel (x, y): an object of several materials.
+    std::function<PhongMaterial(int x, int y)> materialAt;
     int lights = kLights;  // DiLiGenT has 96
     // > 0: every light has this intensity, and light_intensities.txt says kWrittenIntensity for
     // each (intensities known only up to a common factor); in the images' units kd and ks are then
@@ -90,6 +92,7 @@ struct Synthetic {
                     const Vec3d wi = frame.toLocal(l), wo = frame.toLocal(Vec3d(0, 0, 1));
                     PhongMaterial m = truth;
                     if (albedo) m.kd = albedo(x, y);
+                    if (materialAt) m = materialAt(x, y);
                     const Color3 f = phongEval(m, wi, wo);
                     for (int c = 0; c < 3; ++c) {
                         const double v = e[c] * std::max(wi.z(), 0.0) * f[c] + noise(rng);
