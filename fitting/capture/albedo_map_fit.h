@@ -8,10 +8,11 @@
 // equations, and the residual is minimised over log n alone (grid, then golden section). kd_p >= 0
 // and ks >= 0 are kept by an active set. No energy bound is imposed: kd and ks are in the units of
 // the images divided by the light intensities, which are often relative. Standard errors of ks
-// and n come from the Gauss-Newton information with every kd_p eliminated (Schur complement), so
-// they include what the unknown albedo map costs. With K materials each has its own lobe, fitted
-// on its own pixels. The per-pixel Lambertian fit (kd_p alone, the
-// photometric-stereo baseline) is solved on the same pairs.
+// and n are the larger of the Gauss-Newton ones with every kd_p eliminated (Schur complement, so
+// they include what the unknown albedo map costs) and the sandwich clustered by light (each light
+// misfitting in its own way, as on real captures). With K materials each has its own lobe, fitted
+// on its own pixels. The per-pixel Lambertian fit (kd_p alone, the photometric-stereo baseline) is
+// solved on the same pairs. Design notes: docs/design/captures.md.
 #pragma once
 
 #include <cstddef>
@@ -29,8 +30,8 @@ struct AlbedoMapOptions {
     bool grey = false;  // one ks for all channels
     // A pixel with fewer usable pairs is left out: its albedo would absorb its pairs entirely.
     int minPairs = 3;
-    // Lobes: 1 shared by the object, or K for K materials found by clustering the per-pixel
-    // Lambertian albedo (chromaticity and log brightness, k-means with a fixed seed).
+    // Lobes: 1 shared by the object, or K for K materials found by clustering the albedo map of
+    // one shared lobe (material_clusters.h).
     int materials = 1;
     int threads = 0;  // 0 = all hardware threads
 };
