@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "math.h"
+#include "shard.h"
 
 namespace phongfit {
 
@@ -30,13 +31,22 @@ struct BenchFitOptions {
     double failThreshold = 0.5;
     int threads = 0;
     bool quiet = false;
+    Shard shard;  // the fits k (spp index x samples + sample index) with k mod N = I
 };
 
 // Writes DIR/recovery.csv (one row per sample and spp), DIR/rounds.csv (the estimate after each
 // round), DIR/recovered_vs_true.png, DIR/error_vs_time_fit.png, DIR/summary.json, DIR/summary.md
 // and DIR/machine.json, with each fit's own outputs in DIR/fits/spp<N>/<sample>/; prints the
 // summary table. Stops after the current fit on SIGINT, writing what it has.
+//
+// Each fit's row is saved beside its outputs (fits/spp<N>/<sample>/bench_row.json) with the run's
+// key (DIR/bench_run.json: settings, dataset index, build), so a rerun or a shard resumes without
+// refitting; the tables are written from the saved rows by whichever shard finds them all.
 void runBenchFit(const BenchFitOptions& options);
+
+// `bench fit --merge DIR`: the tables from the rows the shards saved. Throws Error when fits are
+// missing or the dataset or build changed since the run began.
+void mergeBenchFit(const std::string& dir, int threads);
 
 // The largest start exponent --start-n-factor picks by multiplying.
 constexpr double kMaxStartN = 1e5;

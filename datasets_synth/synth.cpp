@@ -6,16 +6,14 @@
 #include <chrono>
 #include <exception>
 #include <filesystem>
-#include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <thread>
 
-#include "atomic_file.h"
 #include "error.h"
 #include "image.h"
 #include "interrupt.h"
+#include "json_files.h"
 #include "progress.h"
 #include "renderer.h"
 #include "sample_spec.h"
@@ -28,65 +26,65 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-std::string readFile(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(fmt::format("cannot read '{}'", path));
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-std::uint64_t fnv1a(const std::string& s) {
-    std::uint64_t h = 0xcbf29ce484222325ULL;
-    for (const unsigned char c : s) h = (h ^ c) * 0x100000001b3ULL;
-    return h;
-}
-
-void writeJson(const fs::path& path, const json& j) {
-    writeAtomically(path, [&](const fs::path& tmp) {
-        std::ofstream out(tmp);
-        out << j.dump(2) << "\n";
-        if (!out) throw Error(fmt::format("cannot write '{}'", tmp.string()));
-    });
-}
-
-// What the dataset was made from: a resumed run must match it.
+// What the dataset is made from (a resumed run must match it: "config" and "scene_digests"), and
+// what `synth --merge` needs to write the index without the config file.
 json datasetRecord(const SynthConfig& config) {
     json digests = json::object();
     for (const GroupConfig& g : config.groups)
         for (std::size_t i = 0; i < g.scenes.size(); ++i)
-            digests[g.scenes[i]] = fmt::format("{:016x}", fnv1a(readFile(g.scenePaths[i])));
-    return {{"generator", "phongfit synth"}, {"config", config.json}, {"scene_digests", digests}};
+            digests[g.scenes[i]] = textDigest(readTextFile(g.scenePaths[i]));
+    return {
+        {"generator", "phongfit synth"}, {"config", config.json},
+        {"scene_digests", digests},      {"config_file", fs::path(config.path).filename().string()},
+        {"seed", config.seed},           {"samples", config.totalSamples()}};
+}
+
+bool sameSource(const json& a, const json& b) {
+    return a.is_object() && b.is_object() &&
+           a.value("config", json()) == b.value("config", json()) &&
+           a.value("scene_digests", json()) == b.value("scene_digests", json());
+}
+
+json readRecord(const fs::path& path) {
+    try {
+        return json::parse(readTextFile(path));
+    } catch (const json::exception&) {
+        return nullptr;
+    }
+}
+
+// Whether `dir` holds anything but a shard's temporary config.json (another shard of this run
+// creating the dataset at the same moment).
+bool holdsFiles(const fs::path& dir) {
+    for (const fs::directory_entry& e : fs::directory_iterator(dir))
+        if (e.path().filename().string().rfind(".config.json.", 0) != 0) return true;
+    return false;
 }
 
 void prepareOutput(const fs::path& dir, const json& record) {
     const fs::path recordPath = dir / "config.json";
     if (fs::exists(dir) && !fs::is_directory(dir))
         throw Error(fmt::format("-o '{}': exists and is not a directory", dir.string()));
-    if (fs::exists(recordPath)) {
-        json existing;
-        try {
-            existing = json::parse(readFile(recordPath.string()));
-        } catch (const json::exception&) {
-            existing = nullptr;
-        }
-        if (existing != record)
-            throw Error(fmt::format(
-                "-o '{}': holds a dataset made from another config or other scene files (see {}): "
-                "use another folder, or delete this one to start over",
-                dir.string(), recordPath.string()));
-        return;
-    }
-    if (fs::exists(dir) && !fs::is_empty(dir))
+    // A shard that sees samples of another sees its config.json too: it is written first.
+    if (!fs::exists(recordPath) && fs::exists(dir) && holdsFiles(dir) && !fs::exists(recordPath))
         throw Error(
             fmt::format("-o '{}': not empty and not a synth dataset (no config.json): use "
                         "a new or empty folder",
                         dir.string()));
-    if (!fs::is_directory(fs::absolute(dir).parent_path()))
-        throw Error(fmt::format("-o '{}': directory '{}' does not exist", dir.string(),
-                                fs::absolute(dir).parent_path().string()));
-    fs::create_directories(dir);
-    writeJson(recordPath, record);
+    if (!fs::exists(recordPath)) {
+        if (!fs::is_directory(fs::absolute(dir).parent_path()))
+            throw Error(fmt::format("-o '{}': directory '{}' does not exist", dir.string(),
+                                    fs::absolute(dir).parent_path().string()));
+        fs::create_directories(dir);
+        writeJsonAtomically(recordPath, record);
+    }
+    const json existing = readRecord(recordPath);
+    if (!sameSource(existing, record))
+        throw Error(fmt::format(
+            "-o '{}': holds a dataset made from another config or other scene files (see {}): "
+            "use another folder, or delete this one to start over",
+            dir.string(), recordPath.string()));
+    if (existing != record) writeJsonAtomically(recordPath, record);  // from an older phongfit
 }
 
 json toJson(const Color3& c) { return json::array({c[0], c[1], c[2]}); }
@@ -153,15 +151,29 @@ bool makeSample(const SynthConfig& config, const SampleSpec& s, const fs::path& 
             {"distance", s.light->distance},
             {"position",
              json::array({s.light->position.x(), s.light->position.y(), s.light->position.z()})}};
-    writeJson(sampleDir / "truth.json", truthJson);
+    writeJsonAtomically(sampleDir / "truth.json", truthJson);
     return true;
 }
 
-void writeIndex(const SynthConfig& config, const fs::path& dir) {
+bool sampleComplete(const fs::path& dir, int index, int total) {
+    return fs::exists(dir / sampleName(index, total) / "truth.json");
+}
+
+// The indices of the samples not complete yet, of all `total`.
+std::vector<int> missingSamples(const fs::path& dir, int total) {
+    std::vector<int> missing;
+    for (int i = 0; i < total; ++i)
+        if (!sampleComplete(dir, i, total)) missing.push_back(i);
+    return missing;
+}
+
+// From the dataset's config.json (datasetRecord).
+void writeIndex(const json& record, const fs::path& dir) {
+    const int count = record.at("samples").get<int>();
     json samples = json::array();
-    for (int i = 0; i < config.totalSamples(); ++i) {
-        const std::string name = sampleName(i, config.totalSamples());
-        const json truth = json::parse(readFile((dir / name / "truth.json").string()));
+    for (int i = 0; i < count; ++i) {
+        const std::string name = sampleName(i, count);
+        const json truth = readJsonFile(dir / name / "truth.json");
         samples.push_back({{"name", name},
                            {"group", truth["group"]},
                            {"base_scene", truth["base_scene"]},
@@ -170,11 +182,11 @@ void writeIndex(const SynthConfig& config, const fs::path& dir) {
                            {"ks", truth["ks"]},
                            {"n", truth["n"]}});
     }
-    writeJson(dir / "index.json", {{"generator", "phongfit synth"},
-                                   {"config", fs::path(config.path).filename().string()},
-                                   {"seed", config.seed},
-                                   {"count", config.totalSamples()},
-                                   {"samples", samples}});
+    writeJsonAtomically(dir / "index.json", {{"generator", "phongfit synth"},
+                                             {"config", record.at("config_file")},
+                                             {"seed", record.at("seed")},
+                                             {"count", count},
+                                             {"samples", samples}});
 }
 
 }  // namespace
@@ -182,20 +194,24 @@ void writeIndex(const SynthConfig& config, const fs::path& dir) {
 SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     const fs::path dir(options.output);
-    prepareOutput(dir, datasetRecord(config));
+    const json record = datasetRecord(config);
+    prepareOutput(dir, record);
 
     SynthSummary summary;
-    summary.total = config.totalSamples();
+    summary.datasetTotal = config.totalSamples();
     std::vector<int> pending;
-    for (int i = 0; i < summary.total; ++i) {
-        if (fs::exists(dir / sampleName(i, summary.total) / "truth.json"))
+    for (int i = 0; i < summary.datasetTotal; ++i) {
+        if (!options.shard.contains(i)) continue;
+        ++summary.total;
+        if (sampleComplete(dir, i, summary.datasetTotal))
             ++summary.alreadyComplete;
         else
             pending.push_back(i);
     }
 
     const int jobs = std::clamp(options.jobs, 1, std::max(1, int(pending.size())));
-    const int threads = std::max(1, int(std::thread::hardware_concurrency()) / jobs);
+    const int hardware = std::max(1, int(std::thread::hardware_concurrency()));
+    const int threads = std::max(1, (options.threads > 0 ? options.threads : hardware) / jobs);
     Progress progress("synth", pending.size(), "samples", options.quiet);
     std::atomic<std::size_t> next{0};
     std::atomic<int> rendered{0};
@@ -228,8 +244,48 @@ SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options) {
     summary.interrupted = summary.rendered + summary.alreadyComplete < summary.total;
     if (!summary.interrupted) {
         progress.finish();
-        writeIndex(config, dir);
+        // Whichever shard ends last finds every sample and writes the index.
+        summary.datasetComplete =
+            summary.datasetTotal - int(missingSamples(dir, summary.datasetTotal).size());
+        if (summary.datasetComplete == summary.datasetTotal) {
+            writeIndex(record, dir);
+            summary.indexWritten = true;
+        }
     }
+    summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return summary;
+}
+
+SynthSummary mergeSynth(const std::string& directory) {
+    const auto start = std::chrono::steady_clock::now();
+    const fs::path dir(directory);
+    const fs::path recordPath = dir / "config.json";
+    if (!fs::is_directory(dir) || !fs::exists(recordPath))
+        throw Error(fmt::format("--merge '{}': not a synth dataset (no config.json)", directory));
+    const json record = readRecord(recordPath);
+    if (!record.is_object() || !record.contains("samples") || !record.contains("config_file") ||
+        !record.contains("seed") || !record["samples"].is_number_integer())
+        throw Error(fmt::format(
+            "--merge '{}': {} was written by an older phongfit or is damaged: run phongfit synth "
+            "CONFIG -o {} to finish the dataset",
+            directory, recordPath.string(), directory));
+    SynthSummary summary;
+    summary.datasetTotal = summary.total = record["samples"].get<int>();
+    const std::vector<int> missing = missingSamples(dir, summary.datasetTotal);
+    summary.datasetComplete = summary.alreadyComplete = summary.datasetTotal - int(missing.size());
+    if (!missing.empty()) {
+        std::string names;
+        for (std::size_t k = 0; k < std::min<std::size_t>(missing.size(), 3); ++k)
+            names += (k ? ", " : "") + sampleName(missing[k], summary.datasetTotal);
+        throw Error(fmt::format(
+            "--merge '{}': {} of {} samples are not complete ({}{}): run the missing shards "
+            "again (finished samples are kept)",
+            directory, missing.size(), summary.datasetTotal, names,
+            missing.size() > 3 ? ", ..." : ""));
+    }
+    writeIndex(record, dir);
+    summary.indexWritten = true;
     summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return summary;

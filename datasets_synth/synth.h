@@ -7,25 +7,34 @@
 // resuming with another config. Each sample's values and render seed are functions of the
 // config's seed and the sample's index, and renders are bit-identical whatever the thread count,
 // so an interrupted and resumed run writes exactly the files an uninterrupted one does.
+//
+// Shards (--shard I/N, or a Slurm array task) render the samples k with k mod N = I into the same
+// folder; whichever finds every sample complete when it ends writes index.json (as does
+// `synth --merge DIR`), so the folder is bit-identical to one machine's run.
 #pragma once
 
 #include <string>
 
+#include "shard.h"
 #include "synth_config.h"
 
 namespace phongfit {
 
 struct SynthOptions {
     std::string output;
-    int jobs = 1;  // samples rendered at once, sharing the hardware threads
+    int jobs = 1;     // samples rendered at once, sharing `threads`
+    int threads = 0;  // render threads in all; 0: every hardware thread
+    Shard shard;
     bool quiet = false;
 };
 
 struct SynthSummary {
-    int total = 0;
+    int total = 0;            // samples of this run's shard
     int rendered = 0;         // by this run
     int alreadyComplete = 0;  // found complete and kept
     bool interrupted = false;
+    int datasetTotal = 0, datasetComplete = 0;  // over every shard, when this run ended
+    bool indexWritten = false;
     double seconds = 0;
 };
 
@@ -33,5 +42,9 @@ struct SynthSummary {
 // discarded, never saved as a sample. index.json is written only once every sample is complete.
 // Throws Error for an unusable output folder or a config that differs from the folder's.
 SynthSummary runSynth(const SynthConfig& config, const SynthOptions& options);
+
+// `synth --merge DIR`: writes DIR/index.json from the samples the shards rendered. Throws Error
+// when DIR is not a synth dataset or samples are missing (naming how many and the first ones).
+SynthSummary mergeSynth(const std::string& dir);
 
 }  // namespace phongfit

@@ -3,26 +3,16 @@
 #include <fmt/format.h>
 
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "error.h"
+#include "json_files.h"
 
 namespace phongfit {
 namespace {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-
-json readJson(const fs::path& path, const std::string& missingHint) {
-    std::ifstream in(path);
-    if (!in) throw Error(fmt::format("cannot read '{}'{}", path.string(), missingHint));
-    try {
-        return json::parse(in);
-    } catch (const json::exception& e) {
-        throw Error(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
-    }
-}
 
 Color3 color(const json& j, const fs::path& file, const char* key) {
     if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() ||
@@ -34,8 +24,9 @@ Color3 color(const json& j, const fs::path& file, const char* key) {
 }  // namespace
 
 std::vector<DatasetSample> readDataset(const std::string& dir) {
-    const json index = readJson(fs::path(dir) / "index.json",
-                                " (not a complete synth dataset: run phongfit synth to finish it)");
+    const json index =
+        readJsonFile(fs::path(dir) / "index.json",
+                     " (not a complete synth dataset: run phongfit synth to finish it)");
     if (!index.contains("samples") || !index["samples"].is_array())
         throw Error(fmt::format("{}/index.json: no list 'samples'", dir));
     std::vector<DatasetSample> samples;
@@ -44,7 +35,7 @@ std::vector<DatasetSample> readDataset(const std::string& dir) {
             throw Error(fmt::format("{}/index.json: a sample without a 'name'", dir));
         const fs::path sampleDir = fs::path(dir) / entry["name"].get<std::string>();
         const fs::path file = sampleDir / "truth.json";
-        const json t = readJson(file, "");
+        const json t = readJsonFile(file, "");
         try {
             DatasetSample s;
             s.name = t.at("name").get<std::string>();

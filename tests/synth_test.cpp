@@ -13,6 +13,7 @@
 #include <random>
 #include <sstream>
 
+#include "file_snapshot.h"
 #include "image.h"
 #include "sample_spec.h"
 #include "scene_baker.h"
@@ -29,21 +30,9 @@ using json = nlohmann::json;
 const std::string kScenes = PHONGFIT_SCENES_DIR;
 const std::string kSmallConfig = PHONGFIT_CONFIGS_DIR "/small.json";
 
-std::string readFile(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
+using test::snapshot;
 
-// Every regular file under `dir`, by path relative to it, with its bytes.
-std::map<std::string, std::string> snapshot(const fs::path& dir) {
-    std::map<std::string, std::string> files;
-    for (const auto& entry : fs::recursive_directory_iterator(dir))
-        if (entry.is_regular_file())
-            files[fs::relative(entry.path(), dir).string()] = readFile(entry.path());
-    return files;
-}
+std::string readFile(const fs::path& path) { return test::readFileBytes(path); }
 
 void expectSameFiles(const fs::path& a, const fs::path& b) {
     const auto fa = snapshot(a), fb = snapshot(b);

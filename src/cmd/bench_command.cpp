@@ -1,12 +1,18 @@
 // phongfit bench render SCENE.xml ... -o DIR  and  phongfit bench fit DATASET_DIR ... -o DIR
+// [--shard I/N], phongfit bench fit --merge DIR
+#include <fmt/format.h>
+
+#include <optional>
+
 #include "bench_fit.h"
 #include "bench_render.h"
 #include "color_option.h"
 #include "commands.h"
+#include "error.h"
 
 namespace phongfit {
 
-void addBenchCommand(CLI::App& app) {
+void addBenchCommand(CLI::App& app, bool parseOnly) {
     CLI::App* bench = app.add_subcommand(
         "bench", "error against run time: of the samplers (render), of the fitter (fit)");
     bench->require_subcommand(1);
@@ -39,9 +45,8 @@ void addBenchCommand(CLI::App& app) {
         "fit",
         "fit every sample of a synth dataset; recovered against true parameters, error "
         "against time");
-    fit->add_option("dataset", f->dataset, "dataset directory written by phongfit synth")
-        ->required();
-    fit->add_option("-o,--output", f->output, "output directory")->required();
+    fit->add_option("dataset", f->dataset, "dataset directory written by phongfit synth");
+    fit->add_option("-o,--output", f->output, "output directory");
     fit->add_option("--spp-per-round", f->sppPerRound, "paths recorded per pixel and round; a list")
         ->delimiter(',')
         ->capture_default_str();
@@ -69,10 +74,31 @@ void addBenchCommand(CLI::App& app) {
     fit->add_option("--threads", f->threads, "worker threads (default: all)")
         ->check(CLI::Range(1, 1024));
     fit->add_flag("--quiet", f->quiet, "no per-fit lines");
-    fit->callback([f, startKd, startKs] {
+    auto shard = std::make_shared<std::optional<std::string>>();
+    fit->add_option("--shard", *shard,
+                    "fit only shard I of N (from 0): fit k (spp index x samples + sample index) "
+                    "with k mod N = I; default from SLURM_ARRAY_TASK_ID and "
+                    "SLURM_ARRAY_TASK_COUNT in a Slurm array job");
+    auto merge = std::make_shared<std::string>();
+    fit->add_option("--merge", *merge, "write the tables of DIR once every shard's fits are done");
+    fit->callback([fit, f, startKd, startKs, shard, merge, parseOnly] {
+        if (!merge->empty()) {
+            for (const char* option : {"dataset", "--output", "--shard", "--spp-per-round",
+                                       "--start-kd", "--start-ks", "--start-n", "--start-n-factor",
+                                       "--rounds", "--adaptive-spp", "--fail-threshold"})
+                if (fit->count(option) > 0)
+                    throw Error(fmt::format(
+                        "--merge DIR takes no {}: the run's settings are in DIR/bench_run.json",
+                        option));
+            if (!parseOnly) mergeBenchFit(*merge, f->threads);
+            return;
+        }
+        if (f->dataset.empty() || f->output.empty())
+            throw Error("bench fit needs DATASET and -o DIR (or --merge DIR)");
         f->startKd = parseColorOption(*startKd, "--start-kd");
         f->startKs = parseColorOption(*startKs, "--start-ks");
-        runBenchFit(*f);
+        f->shard = chooseShard(*shard);
+        if (!parseOnly) runBenchFit(*f);
     });
 }
 

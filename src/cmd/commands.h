@@ -1,4 +1,5 @@
-// Subcommands of the phongfit executable; each module defines its own.
+// Subcommands of the phongfit executable; each module defines its own. With `parseOnly`, a
+// command checks its arguments and does nothing (phongfit slurm checks what it will submit).
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -10,8 +11,9 @@ void addRenderCommand(CLI::App& app);
 void addFitCommand(CLI::App& app);
 void addDemoCommand(CLI::App& app);
 void addHdrMergeCommand(CLI::App& app);
-void addSynthCommand(CLI::App& app);
-void addBenchCommand(CLI::App& app);
+void addSynthCommand(CLI::App& app, bool parseOnly = false);
+void addBenchCommand(CLI::App& app, bool parseOnly = false);
+void addSlurmCommand(CLI::App& app);
 
 inline void addCommands(CLI::App& app) {
     addBrdfCommand(app);
@@ -21,6 +23,7 @@ inline void addCommands(CLI::App& app) {
     addHdrMergeCommand(app);
     addSynthCommand(app);
     addBenchCommand(app);
+    addSlurmCommand(app);
 }
 
 }  // namespace phongfit
