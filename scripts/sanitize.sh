@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
-# The whole test suite under AddressSanitizer + UndefinedBehaviorSanitizer, in build-asan/ (or
-# $PHONGFIT_ASAN_DIR). Fails on any test failure and on any sanitizer report, including reports from
-# phongfit subprocesses whose tests only expected a failure: every report goes to a log file that
-# must stay empty. -O1 keeps the suite affordable on 2 cores; extra arguments go to ctest.
+# The test suite (but for the three tests left out below) under AddressSanitizer +
+# UndefinedBehaviorSanitizer, in build-asan/ (or $PHONGFIT_ASAN_DIR). Fails on any test failure
+# and on any sanitizer report, including reports from phongfit subprocesses whose tests only
+# expected a failure: every report goes to a log file that must stay empty. -O1 keeps the suite
+# affordable on 2 cores; extra arguments go to ctest.
 #
-# $SANITIZE_EXCLUDE, a ctest regex, leaves tests out of a local run (CI leaves none out: the slowest,
-# the 96-photo DiLiGenT fits, the closed-form sphere renders, the sampler agreement render, the synth
-# resume run and the 128x128 Cornell round trip, measured 4 min together under ASan on 2 cores).
+# Left out: the Slurm cluster test (label slurm: it runs the same commands as shard_command_test,
+# through daemons), and the two 128x128 Cornell round trips (RoundTrip.CornellBoxWithUnknownExposure
+# and ...FromAStartWithNOffBy100x, 2-3 min each under ASan), whose code paths (recording, replay,
+# Ceres rounds, the exposure) run under ASan in the smaller Cornell round trip, the demo and
+# RoundTrip.DirectLightLeavesTheExposureUnconstrained; this keeps CI under its 45 minutes.
+# $SANITIZE_EXCLUDE, a ctest regex, replaces that list for a local run ("" leaves none out).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${PHONGFIT_ASAN_DIR:-$root/build-asan}
@@ -29,8 +33,9 @@ export ASAN_OPTIONS="log_path=$reports/asan:detect_leaks=1:strict_string_checks=
 export UBSAN_OPTIONS="log_path=$reports/ubsan:print_stacktrace=1:halt_on_error=1"
 
 status=0
-exclude=${SANITIZE_EXCLUDE-}
-(cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900 ${exclude:+-E "$exclude"} "$@") ||
+exclude=${SANITIZE_EXCLUDE-RoundTrip.CornellBoxWithUnknownExposure|RoundTrip.CornellBoxFromAStartWithNOffBy100x}
+(cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900 -LE slurm \
+  ${exclude:+-E "$exclude"} "$@") ||
   status=$?
 if compgen -G "$reports/*" >/dev/null; then
   echo "sanitize: sanitizer reports:" >&2

@@ -7,3 +7,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build=${PHONGFIT_BUILD_DIR:-$root/build}
 cd "$build"
 ctest --output-on-failure -j "$(nproc)" "$@"
+# The Slurm cluster test installs and starts its own cluster; where it cannot, it is skipped: say why.
+if ! why=$("$root/scripts/slurm_cluster.sh" available 2>&1); then
+  echo "test: the Slurm cluster test (slurm_cluster) was skipped: $why"
+fi
