@@ -169,12 +169,14 @@ void applySettings(const json& s, BenchFitOptions& o) {
 }
 
 // DIR/bench_run.json: what the run fits (the dataset, as its index reads now), how, and with which
-// build. Its key marks every saved row: a row of another run is not reused.
+// build (a digest of the running executable itself: a rebuild with uncommitted changes is another
+// run). Its key marks every saved row: a row of another run is not reused.
 json runRecord(const BenchFitOptions& o) {
     json record = {{"generator", "phongfit bench fit"},
                    {"settings", settingsJson(o)},
                    {"dataset_index", textDigest(readTextFile(fs::path(o.dataset) / "index.json"))},
-                   {"commit", machineInfo(0).at("commit")}};
+                   {"commit", machineInfo(0).at("commit")},
+                   {"executable", textDigest(readTextFile("/proc/self/exe"))}};
     record["run"] = textDigest(record.dump());
     record["dataset"] = fs::absolute(o.dataset).lexically_normal().string();
     return record;
@@ -268,8 +270,11 @@ void runBenchFit(const BenchFitOptions& o) {
     }
     const bool interrupted = done < mine.size();
     const std::string part = o.shard.whole() ? "" : fmt::format("shard {}: ", o.shard.text());
-    if (kept > 0 && !o.quiet)
-        fmt::print(stderr, "bench fit: {}{} fits already done by this run were kept\n", part, kept);
+    if (kept > 0)
+        fmt::print(
+            "bench fit: {}{} fits done earlier with these settings, dataset and build were "
+            "kept, not refitted\n",
+            part, kept);
 
     std::size_t missing = 0;
     const std::vector<FitRow> rows = savedRows(dir, o, samples, run, missing);

@@ -219,6 +219,7 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
               withoutTimes(sharded / "recovery.csv"));
     const auto rerun = bench(sharded.string(), {"--shard", "0/3"});
     ASSERT_EQ(rerun.exitCode, 0) << rerun.err;
+    EXPECT_TRUE(contains(rerun.out, "shard 0/3: 3 fits done earlier")) << rerun.out;
     EXPECT_EQ(fs::last_write_time(row), rowTime);
     // Other settings are another run: its fits are redone, not taken from the folder.
     const auto other = run({"bench", "fit", data, "-o", sharded.string(), "--spp-per-round", "4",
