@@ -190,14 +190,19 @@ fs::path rowPath(const fs::path& dir, int spp, const DatasetSample& s) {
     return fitFolder(dir, spp, s) / "bench_row.json";
 }
 
-// The saved row of this run, if any.
+// The saved row of this run, if any. A row that does not read back (edited or damaged by hand: rows
+// are written atomically) counts as not done, and is fitted again.
 std::optional<FitRow> savedRow(const fs::path& dir, int spp, const DatasetSample& s,
                                const std::string& run) {
     const fs::path path = rowPath(dir, spp, s);
     if (!fs::exists(path)) return std::nullopt;
-    const json j = readJsonFile(path);
-    if (!j.is_object() || j.value("run", "") != run) return std::nullopt;
-    return fitRowFromJson(j, s, path.string());
+    try {
+        const json j = readJsonFile(path);
+        if (!j.is_object() || j.value("run", "") != run) return std::nullopt;
+        return fitRowFromJson(j, s, path.string());
+    } catch (const Error&) {
+        return std::nullopt;
+    }
 }
 
 // Every row of this run saved so far, spp-major in dataset order; `missing` counts the others.

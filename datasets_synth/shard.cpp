@@ -45,7 +45,12 @@ Shard parseShard(const std::string& text, const std::string& option) {
 std::optional<Shard> shardFromSlurmEnvironment() {
     const std::optional<long> id = environmentInteger("SLURM_ARRAY_TASK_ID");
     const std::optional<long> count = environmentInteger("SLURM_ARRAY_TASK_COUNT");
-    if (!id || !count) return std::nullopt;
+    if (!id) return std::nullopt;
+    // Without the count every task would do the whole run, into the same folder.
+    if (!count)
+        throw Error(fmt::format(
+            "$SLURM_ARRAY_TASK_ID = {} but $SLURM_ARRAY_TASK_COUNT is not set: pass --shard I/N",
+            *id));
     const long min = environmentInteger("SLURM_ARRAY_TASK_MIN").value_or(0);
     const long step = environmentInteger("SLURM_ARRAY_TASK_STEP").value_or(1);
     if (step < 1 || (*id - min) % step != 0)

@@ -21,7 +21,8 @@ Shard parseShard(const std::string& text, const std::string& option = "--shard")
 
 // The shard of a Slurm array task: I = (SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN) /
 // SLURM_ARRAY_TASK_STEP (MIN 0 and STEP 1 when unset), N = SLURM_ARRAY_TASK_COUNT; nothing outside
-// an array job. Throws Error when the variables are malformed or I is not below N.
+// an array job. Throws Error when the variables are malformed or missing (an ID without a COUNT)
+// or I is not below N.
 std::optional<Shard> shardFromSlurmEnvironment();
 
 // `--shard` when given, else the Slurm array task's, else the whole run.

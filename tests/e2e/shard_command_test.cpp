@@ -104,6 +104,10 @@ TEST(Shard, ComesFromTheSlurmArrayTask) {
     EXPECT_EQ(chooseShard(std::nullopt).text(), "2/4");  // --array=1-7:2
     setenv("SLURM_ARRAY_TASK_ID", "x", 1);
     EXPECT_THROW(chooseShard(std::nullopt), Error);
+    // A task ID without the count: every task would do the whole run into one folder.
+    setenv("SLURM_ARRAY_TASK_ID", "2", 1);
+    unsetenv("SLURM_ARRAY_TASK_COUNT");
+    EXPECT_THROW(chooseShard(std::nullopt), Error);
     for (const char* v : {"SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT", "SLURM_ARRAY_TASK_MIN",
                           "SLURM_ARRAY_TASK_STEP"})
         unsetenv(v);
@@ -221,6 +225,13 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
     ASSERT_EQ(rerun.exitCode, 0) << rerun.err;
     EXPECT_TRUE(contains(rerun.out, "shard 0/3: 3 fits done earlier")) << rerun.out;
     EXPECT_EQ(fs::last_write_time(row), rowTime);
+    // A damaged row is fitted again.
+    std::ofstream(sharded / "fits/spp8/sample_0000/bench_row.json") << "{\"run\": ";
+    const auto mended = bench(sharded.string(), {"--shard", "1/3"});
+    ASSERT_EQ(mended.exitCode, 0) << mended.err;
+    EXPECT_TRUE(contains(mended.out, "kd median")) << mended.out;
+    EXPECT_EQ(withoutTimes(dir.path() / "whole/recovery.csv"),
+              withoutTimes(sharded / "recovery.csv"));
     // Other settings are another run: its fits are redone, not taken from the folder.
     const auto other = run({"bench", "fit", data, "-o", sharded.string(), "--spp-per-round", "4",
                             "--rounds", "2", "--quiet"});
