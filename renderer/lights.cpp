@@ -50,7 +50,7 @@ std::optional<SphereCone> sphereCone(const ShapeDesc& sphere, const Vec3d& p) {
 // first (pbrt-v4, Sphere::Sample with a reference point): every sample lands on the visible cap,
 // with a constant solid-angle density, which area sampling of a large sphere is far from.
 LightSample sampleSphereCone(const ShapeDesc& sphere, const Vec3d& p, const SphereCone& cone,
-                             const Vec3d& u, const Color3& radiance) {
+                             const Vec2d& u, const Color3& radiance) {
     // The angle theta from the axis, then alpha: the angle at the centre between the axis back
     // towards p and the point where that direction meets the sphere.
     const double oneMinusCos = cone.oneMinusCosMax * u.x();
@@ -132,7 +132,7 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
     }
 }
 
-std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec3d& u) const {
+std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec2d& u) const {
     const Light& l = lights_[index];
     switch (l.type) {
         case Light::Type::Point: {
@@ -167,12 +167,17 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
         q = shape.toWorld * Vec3d(d.x(), d.y(), 0);
         n = (shape.toWorld.linear().inverse().transpose() * Vec3d::UnitZ()).normalized();
     } else {
-        const double target = u.z() * l.area;
+        // u.x picks the triangle and is then reused within it, so that a stratified (u.x, u.y)
+        // stays stratified over the whole mesh (a rectangle's two triangles share the square).
+        const double target = u.x() * l.area;
         const auto it = std::upper_bound(l.triangleCdf.begin(), l.triangleCdf.end(), target);
         const std::size_t t =
             std::min<std::size_t>(it - l.triangleCdf.begin(), l.triangleCdf.size() - 1);
+        const double before = t > 0 ? l.triangleCdf[t - 1] : 0;
+        const double width = l.triangleCdf[t] - before;
+        const double ux = width > 0 ? std::clamp((target - before) / width, 0.0, 1.0) : 0.5;
         const auto& [v0, e1, e2, normal] = l.triangles[t];
-        const double su = std::sqrt(u.x());
+        const double su = std::sqrt(ux);
         q = v0 + su * (1 - u.y()) * e1 + su * u.y() * e2;
         n = normal;
     }

@@ -26,8 +26,9 @@ public:
 
     int size() const { return int(lights_.size()); }
 
-    // A sample of light `index` as seen from p, from three uniform numbers.
-    std::optional<LightSample> sample(int index, const Vec3d& p, const Vec3d& u) const;
+    // A sample of light `index` as seen from p, from a point of the unit square (each light warps
+    // it as a whole, so that stratified points give stratified light samples).
+    std::optional<LightSample> sample(int index, const Vec3d& p, const Vec2d& u) const;
 
     // Light index emitting from `shape` (area light), or -1.
     int lightOfShape(int shape) const { return shapeLight_[shape]; }

@@ -16,6 +16,6 @@ PathIntegrator::PathIntegrator(const Scene& scene, const EmbreeScene& geometry,
       fittedSampler_(fittedSampler),
       settings_(settings),
       // Per bounce: lobe choice, 2D direction, roulette, then 3 per light.
-      dimensionsPerBounce_(4 + 3 * std::uint32_t(lights.size())) {}
+      dimensionsPerBounce_(4 + 2 * std::uint32_t(lights.size())) {}
 
 }  // namespace phongfit

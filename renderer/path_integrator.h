@@ -15,7 +15,7 @@
 #include "lights.h"
 #include "path_set.h"
 #include "phong_sampler.h"
-#include "rng.h"
+#include "pixel_sampler.h"
 
 namespace phongfit {
 
@@ -34,13 +34,15 @@ public:
                    const PhongSampler<double>& sampler, const PhongSampler<double>& fittedSampler,
                    IntegratorSettings settings);
 
-    // Random dimensions 0 and 1 are the caller's (the position in the pixel).
+    // Random dimensions 0 and 1 are the caller's (the position in the pixel, a 2D pair). Then per
+    // bounce: the lobe choice (1D), the BRDF direction (2D), the roulette (1D), and per light a
+    // point on it (2D).
     static constexpr std::uint32_t kFirstDimension = 2;
 
     // Traces one camera path. sink.add(const Color3& constant, std::span<const PathVertex>) gets
     // every contribution; `rays` counts the rays traced.
     template <typename Sink>
-    void trace(const Ray& cameraRay, const CounterRng& rng, std::uint64_t sample, Sink& sink,
+    void trace(const Ray& cameraRay, const PixelSampler& rng, std::uint64_t sample, Sink& sink,
                std::uint64_t& rays) const;
 
 private:

@@ -13,7 +13,7 @@ inline double powerHeuristic(double pdfA, double pdfB) {
 }  // namespace detail
 
 template <typename Sink>
-void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uint64_t sample,
+void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::uint64_t sample,
                            Sink& sink, std::uint64_t& rays) const {
     // Fitted vertices of the current path prefix (a fixed small capacity keeps this
     // allocation-free).
@@ -69,10 +69,8 @@ void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uin
 
         // Next-event estimation on every light.
         for (int l = 0; l < lights_.size(); ++l) {
-            const std::uint32_t d = dim + 4 + 3 * std::uint32_t(l);
-            const auto ls = lights_.sample(l, hit->p,
-                                           Vec3d(rng.uniform(sample, d), rng.uniform(sample, d + 1),
-                                                 rng.uniform(sample, d + 2)));
+            const std::uint32_t d = dim + 4 + 2 * std::uint32_t(l);
+            const auto ls = lights_.sample(l, hit->p, rng.get2D(sample, d));
             if (!ls || (!ls->delta && !settings_.mis)) continue;
             const Vec3d wi = frame.toLocal(ls->wi);
             if (!(wi.z() > 0) || !(hit->ng.dot(ls->wi) > 0)) continue;
@@ -97,9 +95,7 @@ void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uin
         }
 
         // Continue the path by sampling the BRDF.
-        const auto s =
-            sampler.sample(m, wo, rng.uniform(sample, dim),
-                           Vec2d(rng.uniform(sample, dim + 1), rng.uniform(sample, dim + 2)));
+        const auto s = sampler.sample(m, wo, rng.get1D(sample, dim), rng.get2D(sample, dim + 1));
         if (!s) return;
         const Vec3d wiWorld = frame.toWorld(s->wi);
         if (!(hit->ng.dot(wiWorld) > 0)) return;
@@ -116,7 +112,7 @@ void PathIntegrator::trace(const Ray& cameraRay, const CounterRng& rng, std::uin
 
         if (depth + 1 >= settings_.rrDepth) {
             const double q = std::min(0.95, (constant * fittedF).maxCoeff());
-            if (!(rng.uniform(sample, dim + 3) < q)) return;
+            if (!(rng.get1D(sample, dim + 3) < q)) return;
             constant /= q;
         }
     }

@@ -31,7 +31,8 @@ struct CountingSink {
 // Bytes a recording needs at its peak, from a pilot of one path in each of up to 4096 pixels
 // spread over the film.
 double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
-                      const SensorDesc& sensor, std::uint64_t seed, double spp) {
+                      const SensorDesc& sensor, PixelSamplerType type, std::uint64_t seed,
+                      double spp) {
     const std::size_t pixels = std::size_t(camera.width()) * camera.height();
     const std::size_t pilots = std::min<std::size_t>(pixels, 4096);
     CountingSink sink;
@@ -39,8 +40,9 @@ double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
     for (std::size_t k = 0; k < pilots; ++k) {
         const std::size_t p = k * pixels / pilots;
         const int x = int(p % camera.width()), y = int(p / camera.width());
-        const CounterRng rng(seed, std::uint32_t(p));
-        const Vec2d film = filmPosition(sensor, x, y, rng.uniform(0, 0), rng.uniform(0, 1));
+        const PixelSampler rng(type, seed, std::uint32_t(p));
+        const Vec2d u = rng.get2D(0, 0);
+        const Vec2d film = filmPosition(sensor, x, y, u.x(), u.y());
         integrator.trace(camera.generateRay(film.x(), film.y()), rng, 0, sink, rays);
     }
     const double paths = double(pixels) * spp / double(pilots);
@@ -63,6 +65,19 @@ int Renderer::effectiveMaxDepth(int requested) const {
     return scene_.integrator.type == "direct" ? 2 : scene_.integrator.maxDepth;
 }
 
+TileLoop Renderer::tileLoop(const PathIntegrator& integrator,
+                            std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed,
+                            int threads, int samples) const {
+    return TileLoop{.integrator = integrator,
+                    .camera = camera_,
+                    .sensor = scene_.sensor,
+                    .pixelSampler = pixelSampler.value_or(scene_.sensor.pixelSampler),
+                    .seed = seed,
+                    .threads = threads,
+                    .samples = samples,
+                    .stop = interruptRequested};
+}
+
 RenderResult Renderer::render(const RenderOptions& options) const {
     const int spp = options.spp > 0 ? options.spp : scene_.sensor.sampleCount;
     const auto sampler = makePhongSampler<double>(options.sampler);
@@ -75,15 +90,9 @@ RenderResult Renderer::render(const RenderOptions& options) const {
     const int width = camera_.width(), height = camera_.height();
     RgbFilm film(width, height, spp);
     Progress progress("render", std::uint64_t(spp) * width * height, "samples", options.quiet);
-    RenderStats stats = traceTiles(TileLoop{.integrator = integrator,
-                                            .camera = camera_,
-                                            .sensor = scene_.sensor,
-                                            .seed = options.seed,
-                                            .threads = options.threads,
-                                            .samples = spp,
-                                            .stop = interruptRequested,
-                                            .progress = &progress},
-                                   film);
+    TileLoop loop = tileLoop(integrator, options.pixelSampler, options.seed, options.threads, spp);
+    loop.progress = &progress;
+    RenderStats stats = traceTiles(loop, film);
     progress.finish();
     stats.spp = spp;
     return film.result(std::move(stats));
@@ -134,8 +143,9 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     // Refuse what would exhaust memory before trying: half the machine's is the budget.
     const double meanPaths =
         std::accumulate(paths.begin(), paths.end(), 0.0) / double(std::max<std::size_t>(pixels, 1));
-    const double bytes =
-        recordingBytes(integrator, camera_, scene_.sensor, options.seed, meanPaths);
+    const double bytes = recordingBytes(integrator, camera_, scene_.sensor,
+                                        options.pixelSampler.value_or(scene_.sensor.pixelSampler),
+                                        options.seed, meanPaths);
     const double budget = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     if (bytes > budget)
         throw Error(fmt::format(
@@ -146,14 +156,8 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     const int most = *std::max_element(paths.begin(), paths.end());
     PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size());
     RecordResult result;
-    result.stats = traceTiles(TileLoop{.integrator = integrator,
-                                       .camera = camera_,
-                                       .sensor = scene_.sensor,
-                                       .seed = options.seed,
-                                       .threads = options.threads,
-                                       .samples = most,
-                                       .stop = interruptRequested},
-                              film);
+    result.stats = traceTiles(
+        tileLoop(integrator, options.pixelSampler, options.seed, options.threads, most), film);
     result.stats.spp = options.spp;
     result.paths = film.assemble(options.spp, int(options.fittedBsdfs.size()));
     return result;

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,11 +18,15 @@
 
 namespace phongfit {
 
+class PathIntegrator;
+struct TileLoop;
+
 struct RenderOptions {
     int spp = 0;  // 0: the scene's sampleCount
     std::uint64_t seed = 0;
     int threads = 0;  // 0: all hardware threads
-    std::string sampler = "lafortune";
+    std::string sampler = "mixture";
+    std::optional<PixelSamplerType> pixelSampler;  // unset: the scene's
     int maxDepth = -2;  // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
     bool mis = true;
     bool quiet = false;  // no progress output
@@ -43,12 +48,13 @@ struct RecordOptions {
     // Per pixel (width x height, each >= 0), paths on top of spp and directSpp; empty: none.
     std::vector<int> extraPaths;
     std::uint64_t seed = 0;
+    std::optional<PixelSamplerType> pixelSampler;  // unset: the scene's
     int threads = 0;
     int maxDepth = -2;
     std::vector<int> fittedBsdfs;       // scene bsdf indices, in slot order
     std::vector<PhongMaterial> theta0;  // per slot: the parameters to record at
     double defensive = 0.2;             // share of cosine sampling at fitted vertices
-    std::string sampler = "lafortune";  // at vertices on materials that are not fitted
+    std::string sampler = "mixture";    // at vertices on materials that are not fitted
 };
 
 struct RecordResult {
@@ -72,6 +78,11 @@ public:
     int effectiveMaxDepth(int requested) const;
 
 private:
+    // The tile loop over this scene's film; `pixelSampler` unset: the scene's.
+    TileLoop tileLoop(const PathIntegrator& integrator,
+                      std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed, int threads,
+                      int samples) const;
+
     Scene scene_;
     std::unique_ptr<EmbreeScene> geometry_;
     std::unique_ptr<LightSet> lights_;

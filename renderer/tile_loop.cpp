@@ -55,7 +55,7 @@ bool representable(const Color3& c) {
 }
 
 NonFiniteSample diagnoseNonFinite(const PathIntegrator& integrator, const Ray& ray,
-                                  const CounterRng& rng, int x, int y, int sample) {
+                                  const PixelSampler& rng, int x, int y, int sample) {
     NonFiniteSample where{x, y, sample};
     DiagnosingSink diagnosis{where};
     std::uint64_t rays = 0;  // a replay, not counted

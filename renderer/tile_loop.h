@@ -45,7 +45,7 @@ bool representable(const Color3& c);
 
 // Replays a dropped sample to find the vertex at which its sum stopped being representable.
 NonFiniteSample diagnoseNonFinite(const PathIntegrator& integrator, const Ray& ray,
-                                  const CounterRng& rng, int x, int y, int sample);
+                                  const PixelSampler& rng, int x, int y, int sample);
 
 // Adds `s` to `list`, which keeps the first few in path order whatever order they arrive in.
 void keepFirstNonFinite(std::vector<NonFiniteSample>& list, const NonFiniteSample& s);
@@ -60,6 +60,7 @@ struct TileLoop {
     const PathIntegrator& integrator;
     const Camera& camera;
     const SensorDesc& sensor;
+    PixelSamplerType pixelSampler = PixelSamplerType::Independent;
     std::uint64_t seed = 0;
     int threads = 0;               // 0: all hardware threads
     int samples = 0;               // the most any pixel takes: the passes run up to it
@@ -113,11 +114,11 @@ RenderStats traceTiles(const TileLoop& loop, Film& film) {
                         for (int y = tile.y0; y < tile.y1; ++y)
                             for (int x = tile.x0; x < tile.x1; ++x) {
                                 const std::uint32_t p = std::uint32_t(y) * width + x;
-                                const CounterRng rng(loop.seed, p);
+                                const PixelSampler rng(loop.pixelSampler, loop.seed, p);
                                 const int end = std::min(s1, film.samples(p));
                                 for (int s = s0; s < end; ++s, ++traced) {
-                                    const Vec2d at = filmPosition(
-                                        loop.sensor, x, y, rng.uniform(s, 0), rng.uniform(s, 1));
+                                    const Vec2d u = rng.get2D(s, 0);
+                                    const Vec2d at = filmPosition(loop.sensor, x, y, u.x(), u.y());
                                     const Ray ray = loop.camera.generateRay(at.x(), at.y());
                                     auto sample = film.startSample(t, p);
                                     detail::SummingSink<decltype(sample)> sink{sample};

@@ -11,6 +11,7 @@
 
 #include "math.h"
 #include "phong_brdf.h"
+#include "pixel_sampler.h"
 
 namespace phongfit {
 
@@ -72,6 +73,7 @@ struct SensorDesc {
     Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
     int width = 768, height = 576;
     int sampleCount = 4;
+    PixelSamplerType pixelSampler = PixelSamplerType::Sobol;  // <sampler type>: Sobol unless named
     enum class Filter { Box, Gaussian };
     Filter filter = Filter::Box;
     double gaussianStddev = 0.5;  // pixels, Mitsuba's default

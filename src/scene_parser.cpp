@@ -217,7 +217,9 @@ private:
 
     void parseSampler(pugi::xml_node n) {
         ctx_.checkAttributes(n, {"type", "id"});
-        typeOf(n, {"independent"});
+        // Mitsuba's ldsampler and sobol are both served by the padded Owen-scrambled Sobol sampler.
+        scene_.sensor.pixelSampler =
+            pixelSamplerType(typeOf(n, {"independent", "ldsampler", "sobol"}));
         std::vector<pugi::xml_node> nested;
         Params p = collect(n, {}, nested);
         const int count = p.getInt("sampleCount").value_or(4);

@@ -7,6 +7,9 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
+
+#include "chi_square.h"
 
 namespace phongfit {
 namespace {
@@ -40,7 +43,7 @@ IrradianceEstimate irradiance(const Scene& scene, int samples) {
     std::uniform_real_distribution<double> uniform(0, 1);
     double sum = 0, squares = 0;
     for (int i = 0; i < samples; ++i) {
-        const Vec3d u(uniform(rng), uniform(rng), uniform(rng));
+        const Vec2d u(uniform(rng), uniform(rng));
         const std::optional<LightSample> s = lights.sample(0, Vec3d::Zero(), u);
         double value = 0;
         if (s) {
@@ -83,9 +86,56 @@ TEST(SphereLight, FromInsideItGivesNoLight) {
     std::mt19937_64 rng(3);
     std::uniform_real_distribution<double> uniform(0, 1);
     for (int i = 0; i < 256; ++i) {
-        const auto s = lights.sample(0, Vec3d::Zero(), Vec3d(uniform(rng), uniform(rng), 0.5));
+        const auto s = lights.sample(0, Vec3d::Zero(), Vec2d(uniform(rng), uniform(rng)));
         EXPECT_FALSE(s) << "a sphere emits outwards only";
     }
+}
+
+// A mesh light of unequal triangles (a 2 x 1 rectangle split off-centre, and a small triangle
+// beside it), sampled on a stratified 256 x 256 grid of the unit square: points are uniform by
+// area (chi-square over a grid of cells on the rectangle, and the small triangle's share), and the
+// density is the inverse area converted to solid angle.
+TEST(MeshLight, StratifiedPointsAreUniformByArea) {
+    Scene scene;
+    scene.bsdfs.push_back(BsdfDesc{"black", "diffuse", PhongMaterial{}, {}});
+    ShapeDesc light;
+    light.type = ShapeDesc::Type::Obj;
+    light.bsdf = 0;
+    light.areaRadiance = Color3::Ones();
+    // In the plane z = 1 facing down (-z) towards the origin: clockwise seen from below.
+    light.mesh.positions = {{0, 0, 1}, {2, 0, 1}, {2, 1, 1}, {0, 1, 1}, {2.5, 0, 1}, {2.5, 0.5, 1}};
+    light.mesh.indices = {0, 2, 1, 0, 3, 2, 1, 5, 4};
+    scene.shapes.push_back(light);
+    const EmbreeScene geometry(scene);
+    const LightSet lights(scene, geometry);
+    const double area = 2 + 0.125;
+    constexpr int kGrid = 256, kCellsX = 8, kCellsY = 4;
+    std::vector<double> observed(kCellsX * kCellsY + 1, 0.0);
+    for (int i = 0; i < kGrid; ++i)
+        for (int j = 0; j < kGrid; ++j) {
+            const Vec2d u((i + 0.5) / kGrid, (j + 0.5) / kGrid);
+            const std::optional<LightSample> s = lights.sample(0, Vec3d::Zero(), u);
+            ASSERT_TRUE(s);
+            const Vec3d q = s->distance * s->wi;
+            ASSERT_NEAR(q.z(), 1, 1e-12);
+            const double cosLight = s->wi.z();
+            ASSERT_NEAR(s->pdf, s->distance * s->distance / (cosLight * area), 1e-9 * s->pdf);
+            if (q.x() > 2) {
+                ++observed.back();
+            } else {
+                ASSERT_GE(q.x(), 0);
+                ASSERT_LE(q.y(), 1);
+                ++observed[std::min(int(q.x() / 2 * kCellsX), kCellsX - 1) * kCellsY +
+                           std::min(int(q.y() * kCellsY), kCellsY - 1)];
+            }
+        }
+    const double n = double(kGrid) * kGrid;
+    std::vector<double> expected(kCellsX * kCellsY, n * 2 / area / (kCellsX * kCellsY));
+    expected.push_back(n * 0.125 / area);
+    const ChiSquareResult r = chiSquareTest(observed, expected);
+    EXPECT_GE(r.pValue, 0.01) << "chi2 = " << r.statistic;
+    // The triangle is picked by u.x alone: its share of a stratified grid is exact to a column.
+    EXPECT_NEAR(observed.back(), expected.back(), kGrid);
 }
 
 }  // namespace

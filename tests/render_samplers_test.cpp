@@ -36,7 +36,10 @@ TEST(RenderSamplers, AllSamplersWithAndWithoutMisAgreeOnTheCornellBox) {
         loadScene(PHONGFIT_SCENES_DIR "/cornell_phong.xml",
                   {{"width", std::to_string(kSize)}, {"height", std::to_string(kSize)}}));
     RenderOptions options;
-    options.spp = 128;
+    // Without MIS, small lights are found by BRDF sampling alone: a heavy-tailed estimator whose
+    // sample variance understates its error at low counts (at 128 spp the cap sampler's estimate
+    // of a corner lit at grazing angles fell 4.8 of its sigmas short, for some seeds).
+    options.spp = 256;
     options.quiet = true;
     options.seed = 1;
     const RegionStats reference = regions(renderer.render(options));  // lafortune + MIS

@@ -134,6 +134,14 @@ TEST(SceneParser, SensorSamplerFilmAndFilters) {
     EXPECT_EQ(s.sensor.height, 16384);
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Gaussian);
     EXPECT_EQ(s.sensor.gaussianStddev, 0.25);
+    EXPECT_EQ(s.sensor.pixelSampler, PixelSamplerType::Independent);
+    // Mitsuba's low-discrepancy names take the Sobol sampler, as does a sensor that names none.
+    for (const std::string type : {"sobol", "ldsampler"}) {
+        s = parse(sensorDoc(R"(<float name="fov" value="45"/><sampler type=")" + type + R"("/>)"));
+        EXPECT_EQ(s.sensor.pixelSampler, PixelSamplerType::Sobol) << type;
+    }
+    s = parse(sensorDoc(R"(<float name="fov" value="45"/>)"));
+    EXPECT_EQ(s.sensor.pixelSampler, PixelSamplerType::Sobol);
 
     s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
                         R"(<rfilter type="gaussian"/></film>)"));
@@ -618,7 +626,7 @@ TEST(SceneParser, MalformedInputsGiveFileLineAndWhatIsWrong) {
                    "</sampler>\n<float name=\"fov\" value=\"45\"/>"),
          "t.xml:3: integer name=\"sampleCount\": sampleCount 0 is invalid (allowed: >= 1)"},
         {sensorDoc("<sampler type=\"stratified\"/>\n<float name=\"fov\" value=\"45\"/>"),
-         "unknown type 'stratified' (allowed: independent)"},
+         "unknown type 'stratified' (allowed: independent, ldsampler, sobol)"},
         {doc(R"(<bsdf type="phong" id="p"><rgb name="diffuseReflectance" value="0.8"/>)"
              R"(<rgb name="specularReflectance" value="0.5"/></bsdf>)"),
          "bsdf 'p' (t.xml:3): kd + ks = 0.8 + 0.5 = 1.3 in channel R exceeds 1"},

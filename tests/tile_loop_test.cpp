@@ -65,7 +65,8 @@ TEST(TileLoop, RecordingWithNoFittedMaterialIsTheRender) {
 
 TEST(TileLoop, RecordingSamplesUnfittedMaterialsWithItsSampler) {
     const Renderer renderer = cornell();
-    EXPECT_EQ(RecordOptions().sampler, "lafortune");
+    EXPECT_EQ(RecordOptions().sampler, "mixture");
+    EXPECT_EQ(RenderOptions().sampler, "mixture");
     const RecordResult cosine = recordUnfitted(renderer, "cosine");
     EXPECT_LT(largestDifference(render(renderer, "cosine"), cosine.paths), 1e-5);
     EXPECT_GT(largestDifference(render(renderer, "lafortune"), cosine.paths), 0.1)

@@ -19,11 +19,12 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
 
     auto r = std::make_shared<BenchRenderOptions>();
     CLI::App* render = bench->add_subcommand(
-        "render", "RMSE and relative MSE against time of every sampler, with and without MIS");
+        "render",
+        "RMSE, relative MSE and efficiency against time of every sampler, with and without MIS");
     render->add_option("scene", r->scene, "scene file (Mitsuba 0.6 XML subset)")->required();
     render->add_option("-o,--output", r->output, "output directory")->required();
     render->add_option("--reference", r->reference,
-                       "reference EXR (default: rendered with lafortune+mis at --reference-spp)");
+                       "reference EXR (default: rendered with the defaults at --reference-spp)");
     render->add_option("--reference-spp", r->referenceSpp, "spp of the rendered reference")
         ->check(CLI::Range(1, 1 << 20))
         ->capture_default_str();
@@ -31,6 +32,15 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
         ->capture_default_str();
     render->add_option("--spp-max", r->sppMax, "stop doubling the spp at this count")
         ->check(CLI::Range(1, 1 << 20))
+        ->capture_default_str();
+    render
+        ->add_option("--strategies", r->strategies,
+                     "strategies to run, e.g. lafortune+mis,sobol/mixture+mis (default: all: "
+                     "each Phong sampler with and without +mis, and each again on sobol/)")
+        ->delimiter(',');
+    render
+        ->add_option("--baseline", r->baseline,
+                     "strategy the efficiencies are relative to (always run)")
         ->capture_default_str();
     render->add_option("-D", r->defines, "override a scene default: name=value");
     render->add_option("--seed", r->seed,

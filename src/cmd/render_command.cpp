@@ -66,6 +66,8 @@ void runRender(const RenderArgs& args) {
         {"samples", s.samples},
         {"interrupted", s.interrupted},
         {"sampler", args.options.sampler},
+        {"pixel_sampler", pixelSamplerName(args.options.pixelSampler.value_or(
+                              renderer.scene().sensor.pixelSampler))},
         {"mis", args.options.mis},
         {"max_depth", renderer.effectiveMaxDepth(args.options.maxDepth)},
         {"threads", threads},
@@ -119,6 +121,12 @@ void addRenderCommand(CLI::App& app) {
         ->check(CLI::Range(1, 1024));
     cmd->add_option("--sampler", args->options.sampler, "Phong sampler")
         ->check(CLI::IsMember(phongSamplerNames()));
+    cmd->add_option_function<std::string>(
+           "--pixel-sampler",
+           [args](const std::string& name) { args->options.pixelSampler = pixelSamplerType(name); },
+           "samples of a pixel: independent or sobol (ldsampler: sobol) (default: the scene's "
+           "<sampler type>, sobol when it names none)")
+        ->check(CLI::IsMember(pixelSamplerNames()));
     cmd->add_option("--max-depth", args->options.maxDepth,
                     "path depth as in Mitsuba (1 = emitters only, 2 = direct, -1 = unbounded)")
         ->check(CLI::Range(-1, 1000));

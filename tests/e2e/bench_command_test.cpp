@@ -85,11 +85,11 @@ TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::string header;
     const auto rows = readCsv(path("render/error_vs_time.csv"), header);
-    EXPECT_EQ(header, "strategy,spp,time_s,rmse,relmse");
+    EXPECT_EQ(header, "strategy,spp,time_s,rmse,relmse,efficiency_vs_baseline");
     std::map<std::string, std::vector<int>> spps;
-    std::map<std::pair<std::string, int>, double> relmse;
+    std::map<std::pair<std::string, int>, double> relmse, efficiency, seconds;
     for (const auto& row : rows) {
-        ASSERT_EQ(row.size(), 5u);
+        ASSERT_EQ(row.size(), 6u);
         const int spp = std::stoi(row[1]);
         spps[row[0]].push_back(spp);
         EXPECT_GT(std::stod(row[2]), 0);
@@ -97,10 +97,21 @@ TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
         EXPECT_TRUE(std::isfinite(rmse) && rmse > 0) << row[3];
         EXPECT_TRUE(std::isfinite(rel) && rel > 0) << row[4];
         relmse[{row[0], spp}] = rel;
+        // Efficiency relative to the baseline (lafortune+mis) at the same spp.
+        const double eff = std::stod(row[5]);
+        EXPECT_TRUE(std::isfinite(eff) && eff > 0) << row[5];
+        if (row[0] == "lafortune+mis") {
+            EXPECT_EQ(eff, 1.0);
+        }
+        efficiency[{row[0], spp}] = eff;
+        seconds[{row[0], spp}] = std::stod(row[2]);
     }
-    const std::set<std::string> expected = {"lafortune+mis", "lafortune", "mixture+mis", "mixture",
-                                            "cap+mis",       "cap",       "cosine+mis",  "cosine",
-                                            "uniform+mis",   "uniform"};
+    std::set<std::string> expected;
+    for (const std::string prefix : {"", "sobol/"})
+        for (const std::string name : {"lafortune", "mixture", "cap", "cosine", "uniform"}) {
+            expected.insert(prefix + name);
+            expected.insert(prefix + name + "+mis");
+        }
     ASSERT_EQ(spps.size(), expected.size());
     for (const auto& [strategy, list] : spps) {
         EXPECT_TRUE(expected.count(strategy)) << strategy;
@@ -112,10 +123,19 @@ TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
     const double cosine = relmse[{"cosine", 8}], lafortune = relmse[{"lafortune+mis", 8}];
     EXPECT_GT(cosine, 10 * lafortune);
     EXPECT_LT(lafortune, (relmse[{"lafortune+mis", 1}]));
+    // The efficiency column is relMSE x time of the baseline over the strategy's, at equal spp.
+    for (const auto& [key, eff] : efficiency) {
+        const std::pair<std::string, int> base{"lafortune+mis", key.second};
+        const double expectedEff = relmse[base] * seconds[base] / (relmse[key] * seconds[key]);
+        EXPECT_NEAR(eff / expectedEff, 1, 1e-4) << key.first << " at " << key.second << " spp";
+    }
+    // Sobol samples stratify the pixel and the light: at equal spp the error is lower.
+    EXPECT_LT((relmse[{"sobol/mixture+mis", 8}]), (relmse[{"mixture+mis", 8}]));
     expectPlot(path("render/error_vs_time.png"));
     expectMachineInfo(path("render/machine.json"));
     EXPECT_TRUE(fs::exists(path("render/reference.exr")));
     EXPECT_NE(r.out.find("relmse*time"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("eff@8"), std::string::npos) << r.out;
 
     // A given reference is used as it is; one of the wrong size is refused on one line.
     const auto again = run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24",
@@ -123,6 +143,24 @@ TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
                             "--spp-max", "2", "-o", path("render2").string(), "--quiet"});
     ASSERT_EQ(again.exitCode, 0) << again.err;
     EXPECT_FALSE(fs::exists(path("render2/reference.exr")));
+
+    // --strategies runs a subset, and the baseline with it; an unknown name is refused on one line.
+    const auto subset =
+        run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24", "-D",
+             "height=24", "--reference", path("render/reference.exr").string(), "--spp-max", "2",
+             "--strategies", "sobol/mixture+mis", "--baseline", "mixture+mis", "-o",
+             path("render4").string(), "--quiet"});
+    ASSERT_EQ(subset.exitCode, 0) << subset.err;
+    std::set<std::string> ran;
+    for (const auto& row : readCsv(path("render4/error_vs_time.csv"), header)) ran.insert(row[0]);
+    EXPECT_EQ(ran, (std::set<std::string>{"mixture+mis", "sobol/mixture+mis"}));
+    const auto unknown = run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "--strategies",
+                              "sobol/nope", "-o", path("render5").string()});
+    EXPECT_NE(unknown.exitCode, 0);
+    EXPECT_NE(unknown.err.find("unknown strategy 'sobol/nope' (allowed: lafortune+mis,"),
+              std::string::npos)
+        << unknown.err;
+    EXPECT_EQ(std::count(unknown.err.begin(), unknown.err.end(), '\n'), 1) << unknown.err;
     const auto wrong = run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "--reference",
                             path("render/reference.exr").string(), "-o", path("render3").string()});
     EXPECT_NE(wrong.exitCode, 0);

@@ -42,11 +42,43 @@ TEST_F(RenderCommand, WritesExrPngAndSidecar) {
     const auto sidecar = nlohmann::json::parse(std::ifstream(path("a.exr.json")));
     EXPECT_EQ(sidecar["seed"], 3);
     EXPECT_EQ(sidecar["spp"], 4);
-    EXPECT_EQ(sidecar["sampler"], "lafortune");
+    EXPECT_EQ(sidecar["sampler"], "mixture");
+    EXPECT_EQ(sidecar["pixel_sampler"], "independent");  // as the scene names it
     EXPECT_EQ(sidecar["samples"], 4 * 32 * 24);
     EXPECT_EQ(sidecar["interrupted"], false);
     EXPECT_GT(sidecar["rays"].get<double>(), 0);
     EXPECT_EQ(sidecar["defines"]["width"], "32");
+}
+
+// --pixel-sampler overrides the scene's <sampler type>: a different image of the same mean; a name
+// that is not one is refused on one line.
+TEST_F(RenderCommand, PixelSamplerOverridesTheScenes) {
+    const std::vector<std::string> args = {PHONGFIT_EXE, "render", kScenes + "/sphere_point.xml",
+                                           "--spp",      "64",     "-D",
+                                           "width=32",   "-D",     "height=24",
+                                           "--quiet"};
+    auto with = [&](std::vector<std::string> extra) {
+        std::vector<std::string> all = args;
+        all.insert(all.end(), extra.begin(), extra.end());
+        return test::runProcess(all);
+    };
+    ASSERT_EQ(with({"-o", path("i.exr")}).exitCode, 0);
+    const auto r = with({"-o", path("s.exr"), "--pixel-sampler", "sobol"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(std::ifstream(path("s.exr.json")))["pixel_sampler"], "sobol");
+    const Image independent = readImage(path("i.exr")), sobol = readImage(path("s.exr"));
+    ASSERT_EQ(independent.rgb.size(), sobol.rgb.size());
+    double a = 0, b = 0;
+    for (std::size_t i = 0; i < sobol.rgb.size(); ++i) {
+        a += independent.rgb[i];
+        b += sobol.rgb[i];
+    }
+    EXPECT_NE(independent.rgb, sobol.rgb);
+    EXPECT_NEAR(b / a, 1, 0.01);
+    const auto bad = with({"-o", path("x.exr"), "--pixel-sampler", "halton"});
+    EXPECT_NE(bad.exitCode, 0);
+    EXPECT_NE(bad.err.find("--pixel-sampler"), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(path("x.exr")));
 }
 
 TEST_F(RenderCommand, SigintWritesAValidPartialImage) {

@@ -1,0 +1,129 @@
+// The numbers a pixel's samples consume, by (sample, dimension): independent (CounterRng) or a
+// padded, Owen-scrambled Sobol sequence (Burley 2020, "Practical Hash-based Owen Scrambling"; as
+// pbrt-v4's PaddedSobolSampler). Both are counter-based: a value is a pure function of (seed,
+// pixel, sample, dimension), so any pixel sample is regenerated on its own, on any thread, and a
+// recorded path can be replayed.
+//
+// Sobol: every 1D or 2D request draws from the first one or two dimensions of the Sobol sequence
+// (a (0,2)-sequence), its sample index shuffled and its values Owen-scrambled by hashes of (seed,
+// pixel, dimension), so that each request is stratified on its own and requests are independent
+// of each other. The integrator's dimension layout (path_integrator.h) asks for 2D pairs where
+// two numbers warp one point (film position, BRDF direction, light point).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "math.h"
+#include "rng.h"
+
+namespace phongfit {
+
+enum class PixelSamplerType { Independent, Sobol };
+
+// Mitsuba's <sampler type> names: independent; sobol, and ldsampler as its alias.
+inline const std::vector<std::string>& pixelSamplerNames() {
+    static const std::vector<std::string> names = {"independent", "sobol", "ldsampler"};
+    return names;
+}
+inline PixelSamplerType pixelSamplerType(std::string_view name) {
+    return name == "independent" ? PixelSamplerType::Independent : PixelSamplerType::Sobol;
+}
+inline std::string pixelSamplerName(PixelSamplerType type) {
+    return type == PixelSamplerType::Independent ? "independent" : "sobol";
+}
+
+namespace sobol {
+
+constexpr std::uint32_t reverseBits(std::uint32_t x) {
+    x = (x << 16) | (x >> 16);
+    x = ((x & 0x00ff00ffu) << 8) | ((x & 0xff00ff00u) >> 8);
+    x = ((x & 0x0f0f0f0fu) << 4) | ((x & 0xf0f0f0f0u) >> 4);
+    x = ((x & 0x33333333u) << 2) | ((x & 0xccccccccu) >> 2);
+    return ((x & 0x55555555u) << 1) | ((x & 0xaaaaaaaau) >> 1);
+}
+
+// Burley's hash-based Laine-Karras permutation: each bit depends only on the bits below it.
+constexpr std::uint32_t laineKarras(std::uint32_t x, std::uint32_t seed) {
+    x += seed;
+    x ^= x * 0x6c50b47cu;
+    x ^= x * 0xb82f1e52u;
+    x ^= x * 0xc7afe638u;
+    x ^= x * 0x8d22f6e6u;
+    return x;
+}
+
+// Owen scrambling of a binary fraction (bit 31 first): each digit flipped by a hash of those above.
+constexpr std::uint32_t owenScramble(std::uint32_t x, std::uint32_t seed) {
+    return reverseBits(laineKarras(reverseBits(x), seed));
+}
+
+// Dimension 0 of the Sobol sequence: the van der Corput sequence.
+constexpr std::uint32_t dimension0(std::uint32_t i) { return reverseBits(i); }
+
+// Dimension 1: generator matrix the upper triangular Pascal matrix mod 2, whose column k is
+// v_k = v_{k-1} ^ (v_{k-1} >> 1) from v_0 = 1/2; applied a byte of the index at a time.
+struct Dimension1Tables {
+    std::array<std::array<std::uint32_t, 256>, 4> byte{};
+    constexpr Dimension1Tables() {
+        std::array<std::uint32_t, 32> v{};
+        v[0] = 1u << 31;
+        for (int k = 1; k < 32; ++k) v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+        for (int b = 0; b < 4; ++b)
+            for (std::uint32_t i = 0; i < 256; ++i)
+                for (int k = 0; k < 8; ++k)
+                    if (i & (1u << k)) byte[b][i] ^= v[8 * b + k];
+    }
+};
+inline constexpr Dimension1Tables kDimension1;
+
+constexpr std::uint32_t dimension1(std::uint32_t i) {
+    return kDimension1.byte[0][i & 0xff] ^ kDimension1.byte[1][(i >> 8) & 0xff] ^
+           kDimension1.byte[2][(i >> 16) & 0xff] ^ kDimension1.byte[3][i >> 24];
+}
+
+}  // namespace sobol
+
+class PixelSampler {
+public:
+    constexpr PixelSampler(PixelSamplerType type, std::uint64_t seed, std::uint64_t pixel)
+        : rng_(seed, pixel), type_(type), key_(rng_.bits(0, 0)) {}
+
+    PixelSamplerType type() const { return type_; }
+
+    // Uniform in [0, 1) for `dimension` of `sample`.
+    constexpr double get1D(std::uint64_t sample, std::uint32_t dimension) const {
+        if (type_ == PixelSamplerType::Independent) return rng_.uniform(sample, dimension);
+        const std::uint64_t h = scrambles(dimension);
+        const std::uint32_t i = sobol::owenScramble(std::uint32_t(sample), std::uint32_t(h));
+        return toUnit(sobol::owenScramble(sobol::dimension0(i), std::uint32_t(h >> 32)));
+    }
+
+    // A point in [0, 1)^2 for dimensions `dimension` and `dimension + 1` of `sample`.
+    Vec2d get2D(std::uint64_t sample, std::uint32_t dimension) const {
+        if (type_ == PixelSamplerType::Independent)
+            return Vec2d(rng_.uniform(sample, dimension), rng_.uniform(sample, dimension + 1));
+        const std::uint64_t h = scrambles(dimension), g = mix64(h);
+        const std::uint32_t i = sobol::owenScramble(std::uint32_t(sample), std::uint32_t(h));
+        return Vec2d(toUnit(sobol::owenScramble(sobol::dimension0(i), std::uint32_t(h >> 32))),
+                     toUnit(sobol::owenScramble(sobol::dimension1(i), std::uint32_t(g))));
+    }
+
+private:
+    // Seeds of the index shuffle (low half) and of the first value's scramble (high half).
+    constexpr std::uint64_t scrambles(std::uint32_t dimension) const {
+        return mix64(key_ + (std::uint64_t(dimension) + 1) * 0x9e3779b97f4a7c15ULL);
+    }
+
+    // The middle of the scrambled value's 2^-32 cell: never 0 or 1, and the mean stays 1/2.
+    static constexpr double toUnit(std::uint32_t x) { return (double(x) + 0.5) * 0x1.0p-32; }
+
+    CounterRng rng_;
+    PixelSamplerType type_;
+    std::uint64_t key_;  // of the scrambles: the pixel's, seeded
+};
+
+}  // namespace phongfit
