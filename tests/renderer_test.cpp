@@ -2,6 +2,7 @@
 // interior pixel box-filtered analytically), and the furnace (a closed emitting diffuse enclosure).
 #include "renderer.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -123,16 +124,20 @@ TEST_P(AnalyticSphere, InteriorPixelsMatchTheBoxFilteredClosedForm) {
             }
         }
     ASSERT_GT(interior, 500);
-    EXPECT_LT(double(sumAbsErr / sumRef), 0.01)
+    // The Sobol pixel sampler leaves 1e-4 to 2.5e-4 at these spp: 0.2% is a bias, not noise.
+    EXPECT_LT(double(sumAbsErr / sumRef), 0.002)
         << "mean relative error over " << interior << " pixels";
 }
 
 INSTANTIATE_TEST_SUITE_P(Materials, AnalyticSphere,
-                         ::testing::Values(AnalyticCase{0.5, 0.3, 30, 1024},
+                         ::testing::Values(AnalyticCase{0.5, 0.3, 30, 256},
                                            AnalyticCase{0.8, 0.0, 1, 256},
-                                           AnalyticCase{0.0, 0.9, 10, 1024},
-                                           AnalyticCase{0.1, 0.5, 300, 8192},
-                                           AnalyticCase{0.2, 0.8, 5000, 16384}));
+                                           AnalyticCase{0.0, 0.9, 10, 256},
+                                           AnalyticCase{0.1, 0.5, 300, 2048},
+                                           AnalyticCase{0.2, 0.8, 5000, 4096}),
+                         [](const ::testing::TestParamInfo<AnalyticCase>& info) {
+                             return fmt::format("n{}_spp{}", info.param.n, info.param.spp);
+                         });
 
 // A closed box, faces towards the inside, every face emitting Le and reflecting diffusely with
 // albedo rho: radiance is Le / (1 - rho) everywhere.
