@@ -153,7 +153,7 @@ void writeExrWithNan(const std::string& file) {
 
 // The main job (README, command 1): render the Cornell box, fit its sphere back, print the table.
 TEST_F(FitCommand, DemoRendersFitsBackAndPrintsTheErrors) {
-    const auto r = run({"demo", "-o", path("demo"), "--spp", "64", "--quiet"});
+    const auto r = run({"demo", "-o", path("demo"), "--spp", "16", "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_TRUE(fs::exists(path("demo/cornell.exr")));
     EXPECT_TRUE(fs::exists(path("demo/fit/fitted.xml")));
