@@ -91,6 +91,11 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
                 environment_ = int(lights_.size());
                 envRadiance_ = e.value;
                 break;
+            case EmitterDesc::Type::EnvMap:
+                l.type = Light::Type::Environment;
+                environment_ = int(lights_.size());
+                envMap_ = std::make_unique<const EnvironmentMap>(*e.map, e.value, e.toWorld);
+                break;
         }
         lights_.push_back(std::move(l));
     }
@@ -145,10 +150,15 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
         case Light::Type::Directional:
             return LightSample{-l.direction, std::numeric_limits<double>::infinity(), l.value, 1,
                                true};
-        case Light::Type::Environment:
-            return LightSample{squareToUniformSphere(u.x(), u.y()),
-                               std::numeric_limits<double>::infinity(), l.value, kEnvironmentPdf,
-                               false};
+        case Light::Type::Environment: {
+            constexpr double kInfinity = std::numeric_limits<double>::infinity();
+            if (!envMap_)
+                return LightSample{squareToUniformSphere(u.x(), u.y()), kInfinity, l.value,
+                                   0.25 * kInvPi, false};
+            const auto s = envMap_->sample(u);
+            if (!s) return std::nullopt;
+            return LightSample{s->wi, kInfinity, s->radiance, s->pdf, false};
+        }
         default:
             break;
     }
@@ -189,6 +199,14 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
     const double cosLight = -n.dot(wi);
     if (!(cosLight > 0)) return std::nullopt;  // back side: emits nothing this way
     return LightSample{wi, dist, l.value, dist2 / (cosLight * l.area), false};
+}
+
+Color3 LightSet::environmentRadiance(const Vec3d& dir) const {
+    return envMap_ ? envMap_->eval(dir) : envRadiance_;
+}
+
+double LightSet::environmentPdf(const Vec3d& dir) const {
+    return envMap_ ? envMap_->pdf(dir) : 0.25 * kInvPi;
 }
 
 double LightSet::pdfArea(int index, const Vec3d& p, const Hit& hit) const {

@@ -1,14 +1,16 @@
-// The scene's emitters, sampled for next-event estimation: point and directional (delta) lights, a
-// constant environment, and area lights on meshes and disks (uniform by area) and spheres (uniform
-// in the cone of directions that meets them, seen from outside); they emit from the front side of
-// their shape.
+// The scene's emitters, sampled for next-event estimation: point and directional (delta) lights, an
+// environment (constant, or an envmap sampled by luminance), and area lights on meshes and disks
+// (uniform by area) and spheres (uniform in the cone of directions that meets them, seen from
+// outside); they emit from the front side of their shape.
 #pragma once
 
 #include <array>
+#include <memory>
 #include <optional>
 #include <vector>
 
 #include "embree_scene.h"
+#include "environment_map.h"
 
 namespace phongfit {
 
@@ -32,14 +34,15 @@ public:
 
     // Light index emitting from `shape` (area light), or -1.
     int lightOfShape(int shape) const { return shapeLight_[shape]; }
-    // Index of the constant environment, or -1.
+    // Index of the environment (constant or envmap), or -1.
     int environment() const { return environment_; }
-    const Color3& environmentRadiance() const { return envRadiance_; }
+    // The environment's radiance arriving from the unit direction `dir`, and the solid-angle
+    // density with which its sampling picks `dir` (uniform on the sphere for a constant one).
+    Color3 environmentRadiance(const Vec3d& dir) const;
+    double environmentPdf(const Vec3d& dir) const;
 
     // Solid-angle density with which light `index` samples the direction from p to `hit` on it.
     double pdfArea(int index, const Vec3d& p, const Hit& hit) const;
-    // Solid-angle density of the environment's direction sampling (uniform sphere).
-    static constexpr double kEnvironmentPdf = 0.25 * kInvPi;
 
     // Emitted radiance leaving `hit` towards -dir (front side only).
     Color3 emitted(const Hit& hit, const Vec3d& dir) const;
@@ -62,6 +65,7 @@ private:
     std::vector<int> shapeLight_;
     int environment_ = -1;
     Color3 envRadiance_ = Color3::Zero();
+    std::unique_ptr<const EnvironmentMap> envMap_;  // null for a constant environment
 };
 
 }  // namespace phongfit

@@ -36,11 +36,13 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
         if (!hit) {
             const int env = lights_.environment();
             if (env >= 0) {
-                const double w = depth == 1 || !settings_.mis
-                                     ? 1.0
-                                     : detail::powerHeuristic(bsdfPdf, LightSet::kEnvironmentPdf);
-                sink.add(constant * lights_.environmentRadiance() * w,
-                         std::span<const PathVertex>(prefix, prefixSize));
+                const double w =
+                    depth == 1 || !settings_.mis
+                        ? 1.0
+                        : detail::powerHeuristic(bsdfPdf, lights_.environmentPdf(ray.dir));
+                const Color3 le = lights_.environmentRadiance(ray.dir) * w;
+                if ((le > 0).any())
+                    sink.add(constant * le, std::span<const PathVertex>(prefix, prefixSize));
             }
             return;
         }

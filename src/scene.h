@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -14,6 +15,8 @@
 #include "pixel_sampler.h"
 
 namespace phongfit {
+
+struct Image;
 
 struct SourceLocation {
     std::string file;
@@ -54,13 +57,19 @@ struct ShapeDesc {
 };
 
 struct EmitterDesc {
-    enum class Type { Point, Directional, Constant };
+    enum class Type { Point, Directional, Constant, EnvMap };
     Type type = Type::Point;
     Vec3d position = Vec3d::Zero();    // point
     Vec3d direction = Vec3d(0, 0, 1);  // directional: unit direction of travel
     // Point: intensity (W/sr); directional: irradiance on a surface facing the light;
-    // constant: radiance.
+    // constant: radiance; envmap: the scale on the map's radiance.
     Color3 value = Color3::Ones();
+    // Envmap: the lat-long map (finite, nonnegative, twice as wide as high), the file it came
+    // from (as resolved against the scene's folder) and the rotation from the map's frame (+y up)
+    // to the world.
+    std::shared_ptr<const Image> map;
+    std::string filename;
+    Eigen::Matrix3d toWorld = Eigen::Matrix3d::Identity();
     SourceLocation loc;
 };
 

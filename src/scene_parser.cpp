@@ -20,6 +20,7 @@
 #include <variant>
 #include <vector>
 
+#include "envmap_file.h"
 #include "error.h"
 #include "obj_mesh.h"
 #include "scene_params.h"
@@ -362,15 +363,9 @@ private:
             shape.toWorld = p.getTransform("toWorld");
         } else {
             shape.type = ShapeDesc::Type::Obj;
-            const std::optional<std::string> filename = p.getString("filename");
-            if (!filename)
-                ctx_.fail(n,
-                          "missing parameter 'filename' (the OBJ file, relative to the scene "
-                          "file, e.g. <string name=\"filename\" value=\"mesh.obj\"/>)");
+            const std::string path = fileParameter(n, p, "the OBJ file", "mesh.obj");
             const bool faceNormals = p.getBool("faceNormals").value_or(false);
-            std::filesystem::path path(*filename);
-            if (path.is_relative()) path = std::filesystem::path(baseDir_) / path;
-            TriangleMesh mesh = loadObjMesh(path.string(), ctx_.where(p.node("filename")));
+            TriangleMesh mesh = loadObjMesh(path, ctx_.where(p.node("filename")));
             if (faceNormals) mesh.normals.clear();
             shape.mesh = transformed(std::move(mesh), p.getTransform("toWorld"));
         }
@@ -418,9 +413,9 @@ private:
         if (!shape && ctx_.attr(n, "type") == "area")
             ctx_.fail(n,
                       "an area emitter must be nested in a shape (allowed here: point, "
-                      "directional, constant)");
+                      "directional, constant, envmap)");
         const std::string type =
-            shape ? typeOf(n, {"area"}) : typeOf(n, {"point", "directional", "constant"});
+            shape ? typeOf(n, {"area"}) : typeOf(n, {"point", "directional", "constant", "envmap"});
         std::vector<pugi::xml_node> nested;
         Params p = collect(n, {}, nested);
         const auto power = [&](const char* name) {
@@ -450,13 +445,53 @@ private:
                 ctx_.fail(p.node("direction"), "direction is zero (allowed: a nonzero vector)");
             e.direction = d.normalized();
             e.value = power("irradiance");
-        } else {
+        } else if (type == "constant") {
             e.type = EmitterDesc::Type::Constant;
             e.value = power("radiance");
+        } else {
+            parseEnvMap(n, p, e);
+        }
+        if (e.type == EmitterDesc::Type::Constant || e.type == EmitterDesc::Type::EnvMap) {
+            for (const EmitterDesc& other : scene_.emitters)
+                if (other.type == EmitterDesc::Type::Constant ||
+                    other.type == EmitterDesc::Type::EnvMap)
+                    ctx_.fail(n, fmt::format("a second environment emitter (the first is at {}; "
+                                             "allowed: one constant or envmap)",
+                                             other.loc.str()));
         }
         p.finish();
         registerId(n, "emitter", int(scene_.emitters.size()));
         scene_.emitters.push_back(std::move(e));
+    }
+
+    // Mitsuba's envmap: filename (relative to the scene file), scale, toWorld (a rotation;
+    // a translation is ignored, as Mitsuba does).
+    void parseEnvMap(pugi::xml_node n, Params& p, EmitterDesc& e) {
+        e.type = EmitterDesc::Type::EnvMap;
+        const double scale = p.getFloat("scale").value_or(1);
+        if (!(scale >= 0))
+            ctx_.fail(p.node("scale"), fmt::format("scale {} is invalid (allowed: >= 0)", scale));
+        e.value = Color3::Constant(scale);
+        e.toWorld = p.getTransform("toWorld").linear();
+        if ((e.toWorld.transpose() * e.toWorld - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
+            !(e.toWorld.determinant() > 0))
+            ctx_.fail(p.node("toWorld"),
+                      "toWorld of an envmap must be a rotation (allowed: rotate, lookat; no "
+                      "scale or mirror)");
+        e.filename = fileParameter(n, p, "the lat-long EXR", "probe.exr");
+        e.map = loadEnvironmentMap(e.filename, ctx_.where(p.node("filename")));
+    }
+
+    // The required `filename` parameter, resolved against the scene file's folder.
+    std::string fileParameter(pugi::xml_node n, Params& p, const char* what, const char* example) {
+        const std::optional<std::string> filename = p.getString("filename");
+        if (!filename)
+            ctx_.fail(n, fmt::format("missing parameter 'filename' ({}, relative to the scene "
+                                     "file, e.g. <string name=\"filename\" value=\"{}\"/>)",
+                                     what, example));
+        std::filesystem::path path(*filename);
+        if (path.is_relative()) path = std::filesystem::path(baseDir_) / path;
+        return path.string();
     }
 
     struct IdEntry {

@@ -220,7 +220,8 @@ void writeSceneWithMaterials(const std::string& inPath, const Vars& defines,
         if (tag == "bsdf" && n.attribute("id")) {
             const auto it = materials.find(expand(n, "id"));
             if (it != materials.end()) phongEdits(text, n, it->second, expand, edits);
-        } else if (moved && tag == "shape" && expand(n, "type") == "obj") {
+        } else if (moved && ((tag == "shape" && expand(n, "type") == "obj") ||
+                             (tag == "emitter" && expand(n, "type") == "envmap"))) {
             for (const pugi::xml_node c : n.children("string")) {
                 const fs::path file(expand(c, "value"));
                 if (expand(c, "name") != "filename" || file.is_absolute()) continue;
@@ -241,7 +242,8 @@ void writeSceneWithMaterials(const std::string& inPath, const Vars& defines,
 
     writeAtomically(outPath, [&](const fs::path& temporary) {
         // What `render` will read must parse (it does, unless this writer has a bug). Checked
-        // here, where the output directory is known to exist, so relative obj paths resolve.
+        // here, where the output directory is known to exist, so relative obj and envmap paths
+        // resolve.
         parseScene(out, outPath, defines, outDir.string());
         std::ofstream file(temporary, std::ios::binary);
         file << out;

@@ -8,9 +8,12 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <random>
 
 #include "error.h"
+#include "image.h"
+#include "raw_exr.h"
 #include "temp_dir.h"
 
 namespace phongfit {
@@ -417,6 +420,91 @@ TEST(SceneParser, Emitters) {
     EXPECT_FALSE(s.shapes.at(1).areaRadiance.has_value());
 }
 
+// A width x height map whose texel (x, y) holds (x, y, 1).
+Image indexMap(int width, int height) {
+    Image map(width, height);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) map.set(x, y, Color<float>(float(x), float(y), 1));
+    return map;
+}
+
+TEST(SceneParser, EnvMapReadsItsFileScaleAndRotation) {
+    const test::TempDir dir("scene_parser");
+    fs::create_directories(dir.path() / "maps");
+    writeExr(indexMap(8, 4), (dir.path() / "maps/probe.exr").string());
+    const Scene s =
+        parse(doc(R"(<emitter type="envmap"><string name="filename" value="maps/probe.exr"/>
+        <float name="scale" value="2.5"/>
+        <transform name="toWorld"><rotate y="1" angle="90"/><translate x="7"/></transform>
+        </emitter>)"),
+              {}, dir.path().string());
+    ASSERT_EQ(s.emitters.size(), 1u);
+    const EmitterDesc& e = s.emitters[0];
+    EXPECT_EQ(e.type, EmitterDesc::Type::EnvMap);
+    EXPECT_EQ(fs::path(e.filename), dir.path() / "maps/probe.exr");
+    EXPECT_TRUE((e.value == 2.5).all());
+    // A rotation by 90 degrees about +y takes +z to +x; the translation is ignored.
+    expectNear(e.toWorld * Vec3d(0, 0, 1), Vec3d(1, 0, 0), 1e-12);
+    ASSERT_TRUE(e.map);
+    EXPECT_EQ(e.map->width, 8);
+    EXPECT_EQ(e.map->height, 4);
+    EXPECT_TRUE((e.map->at(5, 3) == Color<float>(5, 3, 1)).all());
+    // Defaults: scale 1, no rotation.
+    const Scene d = parse(
+        doc(R"(<emitter type="envmap"><string name="filename" value="maps/probe.exr"/></emitter>)"),
+        {}, dir.path().string());
+    EXPECT_TRUE((d.emitters.at(0).value == 1).all());
+    EXPECT_TRUE(d.emitters[0].toWorld.isIdentity());
+}
+
+TEST(SceneParser, MalformedEnvMapsAreNamedWithWhatIsAllowed) {
+    const test::TempDir dir("scene_parser");
+    writeExr(indexMap(8, 4), (dir.path() / "good.exr").string());
+    writeExr(indexMap(8, 8), (dir.path() / "square.exr").string());
+    Image negative = indexMap(8, 4);
+    negative.set(2, 1, Color<float>(0, -1, 0));
+    writeExr(negative, (dir.path() / "negative.exr").string());
+    Image nan = indexMap(8, 4), inf = indexMap(8, 4);
+    nan.set(3, 2, Color<float>(std::numeric_limits<float>::quiet_NaN(), 0, 0));
+    inf.set(7, 0, Color<float>(0, 0, std::numeric_limits<float>::infinity()));
+    test::writeRawExr(nan, (dir.path() / "nan.exr").string());
+    test::writeRawExr(inf, (dir.path() / "inf.exr").string());
+    dir.write("garbage.exr", "not an image");
+    const auto envmap = [](const std::string& file, const std::string& extra = "") {
+        return doc(fmt::format(
+            R"(<emitter type="envmap"><string name="filename" value="{}"/>{}</emitter>)", file,
+            extra));
+    };
+    const std::pair<std::string, std::string> cases[] = {
+        {envmap("missing.exr"), "t.xml:3: string name=\"filename\": envmap: cannot read"},
+        {envmap("missing.exr"), "missing.exr"},
+        {envmap("garbage.exr"), "garbage.exr"},
+        {envmap("square.exr"), "square.exr' is 8x8 (allowed: a lat-long map twice as wide as high"},
+        {envmap("negative.exr"),
+         "negative.exr' has texel (2, 1) channel G = -1 (allowed: finite radiance >= 0)"},
+        {envmap("nan.exr"), "nan.exr' has texel (3, 2) channel R = nan"},
+        {envmap("inf.exr"), "inf.exr' has texel (7, 0) channel B = inf"},
+        {envmap("good.exr", R"(<float name="scale" value="-1"/>)"),
+         "t.xml:3: float name=\"scale\": scale -1 is invalid (allowed: >= 0)"},
+        {envmap("good.exr", R"(<transform name="toWorld"><scale x="2"/></transform>)"),
+         "toWorld of an envmap must be a rotation"},
+        {envmap("good.exr", R"(<transform name="toWorld"><scale x="-1"/></transform>)"),
+         "toWorld of an envmap must be a rotation"},
+        {envmap("good.exr", R"(<float name="gamma" value="2.2"/>)"), "unknown parameter 'gamma'"},
+        {doc(R"(<emitter type="envmap"/>)"),
+         "t.xml:3: emitter type=\"envmap\": missing parameter 'filename'"},
+        {doc(R"(<emitter type="constant"/>
+<emitter type="envmap"><string name="filename" value="good.exr"/></emitter>)"),
+         "t.xml:4: emitter type=\"envmap\": a second environment emitter (the first is at t.xml:3"},
+    };
+    for (const auto& [text, fragment] : cases) {
+        const std::string message = errorOf([&] { parse(text, {}, dir.path().string()); });
+        EXPECT_NE(message.find(fragment), std::string::npos)
+            << message << "\n  wanted: " << fragment;
+        EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    }
+}
+
 TEST(SceneParser, ObjMeshFromFile) {
     const test::TempDir dir("scene_parser");
     // A unit quad in z = 0 with normals tilted towards +x, and a triangle without normals.
@@ -650,7 +738,7 @@ TEST(SceneParser, MalformedInputsGiveFileLineAndWhatIsWrong) {
          "unknown type 'point' (allowed: area)"},
         {doc(R"(<emitter type="spot"/>)"),
          "unknown type 'spot' (allowed: point, directional, "
-         "constant)"},
+         "constant, envmap)"},
         {doc(R"(<emitter type="point"><rgb name="intensity" value="1, -1, 1"/></emitter>)"),
          "intensity (1, -1, 1) is negative (allowed: >= 0 per channel)"},
         {doc(R"(<emitter type="directional"><vector name="direction"/></emitter>)"),

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "error.h"
+#include "image.h"
 #include "scene_parser.h"
 #include "temp_dir.h"
 
@@ -197,6 +198,29 @@ TEST(SceneWriter, RelativeObjPathsFollowTheOutputDirectory) {
     // In the same directory nothing needs to change.
     writeSceneWithMaterials(in, {}, {}, dir.at("in/copy.xml"));
     EXPECT_EQ(read(dir.at("in/copy.xml")), kScene);
+}
+
+TEST(SceneWriter, RelativeEnvMapPathsFollowTheOutputDirectory) {
+    const TempDir dir;
+    Image probe(4, 2);
+    probe.set(1, 1, Color<float>(1, 2, 3));
+    fs::create_directories(dir.at("in/probes"));
+    writeExr(probe, dir.at("in/probes/sky.exr"));
+    const std::string scene = R"(<scene version="0.6.0">
+    <sensor type="perspective"><float name="fov" value="45"/></sensor>
+    <bsdf type="phong" id="ball"/>
+    <shape type="sphere"><ref id="ball"/></shape>
+    <emitter type="envmap"><string name="filename" value="probes/sky.exr"/></emitter>
+</scene>
+)";
+    const std::string in = dir.write("in/scene.xml", scene);
+    fs::create_directories(dir.at("out/deeper"));
+    const std::string out = dir.at("out/deeper/fitted.xml");
+    writeSceneWithMaterials(in, {}, {}, out);
+    EXPECT_EQ(read(out), replaced(scene, "probes/sky.exr", "../../in/probes/sky.exr"));
+    const Scene moved = loadScene(out);
+    ASSERT_EQ(moved.emitters.size(), 1u);
+    EXPECT_TRUE((moved.emitters[0].map->at(1, 1) == Color<float>(1, 2, 3)).all());
 }
 
 TEST(SceneWriter, OverwritesInPlace) {
