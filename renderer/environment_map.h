@@ -8,6 +8,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <optional>
 
 #include "distribution_2d.h"
@@ -17,11 +18,18 @@ namespace phongfit {
 
 class EnvironmentMap {
 public:
-    // map: finite and nonnegative (scene_parser checks it); toWorld: a rotation.
-    EnvironmentMap(const Image& map, const Color3& scale, const Eigen::Matrix3d& toWorld);
+    // map: finite and nonnegative (scene_parser checks it), shared with the scene; toWorld: a
+    // rotation.
+    EnvironmentMap(std::shared_ptr<const Image> map, const Color3& scale,
+                   const Eigen::Matrix3d& toWorld);
 
-    // Radiance arriving from the unit world direction `dir` (towards where it comes from).
-    Color3 eval(const Vec3d& dir) const;
+    struct Lookup {
+        Color3 radiance;
+        double pdf;  // solid angle, with which sample() returns the direction
+    };
+    // Radiance arriving from the unit world direction `dir` (towards where it comes from), and
+    // the density of sampling it.
+    Lookup lookup(const Vec3d& dir) const;
 
     struct DirectionSample {
         Vec3d wi;  // unit, world
@@ -29,8 +37,6 @@ public:
         double pdf;  // solid angle
     };
     std::optional<DirectionSample> sample(const Vec2d& u) const;
-    // Solid-angle density with which sample() returns `dir`.
-    double pdf(const Vec3d& dir) const;
 
     // The map's (u, v) of a unit direction in the emitter's frame, and back.
     static Vec2d directionToUv(const Vec3d& local);
@@ -43,10 +49,10 @@ private:
         double tx, ty;
     };
     Footprint footprint(const Vec2d& uv) const;
-    Color3 lookup(const Vec2d& uv) const;
-    double pdfUv(const Vec2d& uv) const;
+    Color3 radianceAt(const Footprint& f) const;
+    double pdfUvAt(const Footprint& f) const;
 
-    Image map_;
+    std::shared_ptr<const Image> map_;
     Color3 scale_;
     Eigen::Matrix3d toWorld_;
     Distribution2D distribution_;

@@ -94,7 +94,7 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
             case EmitterDesc::Type::EnvMap:
                 l.type = Light::Type::Environment;
                 environment_ = int(lights_.size());
-                envMap_ = std::make_unique<const EnvironmentMap>(*e.map, e.value, e.toWorld);
+                envMap_ = std::make_unique<const EnvironmentMap>(e.map, e.value, e.toWorld);
                 break;
         }
         lights_.push_back(std::move(l));
@@ -201,12 +201,8 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
     return LightSample{wi, dist, l.value, dist2 / (cosLight * l.area), false};
 }
 
-Color3 LightSet::environmentRadiance(const Vec3d& dir) const {
-    return envMap_ ? envMap_->eval(dir) : envRadiance_;
-}
-
-double LightSet::environmentPdf(const Vec3d& dir) const {
-    return envMap_ ? envMap_->pdf(dir) : 0.25 * kInvPi;
+EnvironmentMap::Lookup LightSet::environmentLookup(const Vec3d& dir) const {
+    return envMap_ ? envMap_->lookup(dir) : EnvironmentMap::Lookup{envRadiance_, 0.25 * kInvPi};
 }
 
 double LightSet::pdfArea(int index, const Vec3d& p, const Hit& hit) const {

@@ -38,8 +38,7 @@ public:
     int environment() const { return environment_; }
     // The environment's radiance arriving from the unit direction `dir`, and the solid-angle
     // density with which its sampling picks `dir` (uniform on the sphere for a constant one).
-    Color3 environmentRadiance(const Vec3d& dir) const;
-    double environmentPdf(const Vec3d& dir) const;
+    EnvironmentMap::Lookup environmentLookup(const Vec3d& dir) const;
 
     // Solid-angle density with which light `index` samples the direction from p to `hit` on it.
     double pdfArea(int index, const Vec3d& p, const Hit& hit) const;

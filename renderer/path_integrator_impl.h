@@ -34,13 +34,11 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
         if constexpr (requires { sink.vertex(depth, 0); })
             sink.vertex(depth, hit ? scene_.shapes[hit->shape].bsdf : -1);
         if (!hit) {
-            const int env = lights_.environment();
-            if (env >= 0) {
+            if (lights_.environment() >= 0) {
+                const EnvironmentMap::Lookup env = lights_.environmentLookup(ray.dir);
                 const double w =
-                    depth == 1 || !settings_.mis
-                        ? 1.0
-                        : detail::powerHeuristic(bsdfPdf, lights_.environmentPdf(ray.dir));
-                const Color3 le = lights_.environmentRadiance(ray.dir) * w;
+                    depth == 1 || !settings_.mis ? 1.0 : detail::powerHeuristic(bsdfPdf, env.pdf);
+                const Color3 le = env.radiance * w;
                 if ((le > 0).any())
                     sink.add(constant * le, std::span<const PathVertex>(prefix, prefixSize));
             }

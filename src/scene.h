@@ -64,11 +64,9 @@ struct EmitterDesc {
     // Point: intensity (W/sr); directional: irradiance on a surface facing the light;
     // constant: radiance; envmap: the scale on the map's radiance.
     Color3 value = Color3::Ones();
-    // Envmap: the lat-long map (finite, nonnegative, twice as wide as high), the file it came
-    // from (as resolved against the scene's folder) and the rotation from the map's frame (+y up)
-    // to the world.
+    // Envmap: the lat-long map (finite, nonnegative, twice as wide as high) and the rotation from
+    // the map's frame (+y up) to the world.
     std::shared_ptr<const Image> map;
-    std::string filename;
     Eigen::Matrix3d toWorld = Eigen::Matrix3d::Identity();
     SourceLocation loc;
 };

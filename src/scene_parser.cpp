@@ -478,8 +478,8 @@ private:
             ctx_.fail(p.node("toWorld"),
                       "toWorld of an envmap must be a rotation (allowed: rotate, lookat; no "
                       "scale or mirror)");
-        e.filename = fileParameter(n, p, "the lat-long EXR", "probe.exr");
-        e.map = loadEnvironmentMap(e.filename, ctx_.where(p.node("filename")));
+        e.map = loadEnvironmentMap(fileParameter(n, p, "the lat-long EXR", "probe.exr"),
+                                   ctx_.where(p.node("filename")));
     }
 
     // The required `filename` parameter, resolved against the scene file's folder.

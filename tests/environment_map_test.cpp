@@ -90,19 +90,21 @@ TEST(EnvironmentMap, FollowsMitsubasLatLongConvention) {
     }
     // Texel centres give the texel's value times the scale; the rotation turns the map.
     const Image map = testMap(16, 8);
-    const EnvironmentMap env(map, Color3(2, 3, 4), Eigen::Matrix3d::Identity());
+    const auto shared = std::make_shared<const Image>(map);
+    const EnvironmentMap env(shared, Color3(2, 3, 4), Eigen::Matrix3d::Identity());
     const Eigen::Matrix3d r = rotation(Vec3d(1, 2, 3), 70);
-    const EnvironmentMap turned(map, Color3(2, 3, 4), r);
+    const EnvironmentMap turned(shared, Color3(2, 3, 4), r);
     for (int y = 0; y < 8; ++y)
         for (int x = 0; x < 16; ++x) {
             const Vec3d d = EnvironmentMap::uvToDirection(Vec2d((x + 0.5) / 16, (y + 0.5) / 8));
             const Color3 expected = map.at(x, y).cast<double>() * Color3(2, 3, 4);
-            EXPECT_LT((env.eval(d) - expected).abs().maxCoeff(), 1e-5 * (1 + expected.maxCoeff()));
-            EXPECT_LT((turned.eval(r * d) - expected).abs().maxCoeff(),
+            EXPECT_LT((env.lookup(d).radiance - expected).abs().maxCoeff(),
+                      1e-5 * (1 + expected.maxCoeff()));
+            EXPECT_LT((turned.lookup(r * d).radiance - expected).abs().maxCoeff(),
                       1e-5 * (1 + expected.maxCoeff()));
         }
     // Halfway between two texel centres across the seam at u = 0: their mean.
-    const Color3 seam = env.eval(EnvironmentMap::uvToDirection(Vec2d(0, 0.5 / 8)));
+    const Color3 seam = env.lookup(EnvironmentMap::uvToDirection(Vec2d(0, 0.5 / 8))).radiance;
     const Color3 mean = 0.5 * (map.at(0, 0) + map.at(15, 0)).cast<double>() * Color3(2, 3, 4);
     EXPECT_LT((seam - mean).abs().maxCoeff(), 1e-5);
 }
@@ -124,20 +126,22 @@ double sphereIntegral(F f, int n = 1024) {
 
 TEST(EnvironmentMap, PdfIntegratesToOneAndMatchesItsSamples) {
     for (const bool real : {false, true}) {
-        const Image map = real ? readImage(kKerner) : testMap(16, 8);
-        const EnvironmentMap env(map, Color3::Ones(), rotation(Vec3d(0, 1, 1), 30));
-        EXPECT_NEAR(sphereIntegral([&](const Vec3d& d) { return env.pdf(d); }, real ? 2048 : 512),
-                    1, 1e-3)
+        const EnvironmentMap env(
+            std::make_shared<const Image>(real ? readImage(kKerner) : testMap(16, 8)),
+            Color3::Ones(), rotation(Vec3d(0, 1, 1), 30));
+        EXPECT_NEAR(
+            sphereIntegral([&](const Vec3d& d) { return env.lookup(d).pdf; }, real ? 2048 : 512), 1,
+            1e-3)
             << (real ? "Kerner" : "test map");
-        // Samples: pdf and radiance as pdf() and eval() say.
+        // Samples: pdf and radiance as lookup() says.
         std::mt19937_64 rng(11);
         std::uniform_real_distribution<double> uniform;
         for (int i = 0; i < 2000; ++i) {
             const auto s = env.sample(Vec2d(uniform(rng), uniform(rng)));
             ASSERT_TRUE(s);
             EXPECT_NEAR(s->wi.norm(), 1, 1e-12);
-            EXPECT_NEAR(s->pdf, env.pdf(s->wi), 1e-6 * s->pdf);
-            EXPECT_LT((s->radiance - env.eval(s->wi)).abs().maxCoeff(),
+            EXPECT_NEAR(s->pdf, env.lookup(s->wi).pdf, 1e-6 * s->pdf);
+            EXPECT_LT((s->radiance - env.lookup(s->wi).radiance).abs().maxCoeff(),
                       1e-4 * (1 + s->radiance.maxCoeff()));
         }
     }
@@ -145,7 +149,8 @@ TEST(EnvironmentMap, PdfIntegratesToOneAndMatchesItsSamples) {
 
 TEST(EnvironmentMap, SamplerPassesChiSquareAgainstItsPdf) {
     // Cells in (phi, cos theta) of the world frame, not aligned with the (rotated) texels.
-    const EnvironmentMap env(testMap(16, 8), Color3::Ones(), rotation(Vec3d(1, 0, 1), 25));
+    const EnvironmentMap env(std::make_shared<const Image>(testMap(16, 8)), Color3::Ones(),
+                             rotation(Vec3d(1, 0, 1), 25));
     const int nPhi = 24, nY = 12, sub = 24;
     std::vector<double> expected(nPhi * nY, 0), observed(nPhi * nY, 0);
     const long n = 400000;
@@ -158,7 +163,7 @@ TEST(EnvironmentMap, SamplerPassesChiSquareAgainstItsPdf) {
                     const double s = std::sqrt(1 - y * y);
                     const Vec3d d(s * std::cos(phi), y, s * std::sin(phi));
                     expected[j * nPhi + i] +=
-                        n * env.pdf(d) * 4 * kPi / (double(nPhi) * nY * sub * sub);
+                        n * env.lookup(d).pdf * 4 * kPi / (double(nPhi) * nY * sub * sub);
                 }
     std::mt19937_64 rng(3);
     std::uniform_real_distribution<double> uniform;

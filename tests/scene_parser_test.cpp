@@ -441,11 +441,10 @@ TEST(SceneParser, EnvMapReadsItsFileScaleAndRotation) {
     ASSERT_EQ(s.emitters.size(), 1u);
     const EmitterDesc& e = s.emitters[0];
     EXPECT_EQ(e.type, EmitterDesc::Type::EnvMap);
-    EXPECT_EQ(fs::path(e.filename), dir.path() / "maps/probe.exr");
     EXPECT_TRUE((e.value == 2.5).all());
     // A rotation by 90 degrees about +y takes +z to +x; the translation is ignored.
     expectNear(e.toWorld * Vec3d(0, 0, 1), Vec3d(1, 0, 0), 1e-12);
-    ASSERT_TRUE(e.map);
+    ASSERT_TRUE(e.map);  // maps/probe.exr, resolved against the scene's folder
     EXPECT_EQ(e.map->width, 8);
     EXPECT_EQ(e.map->height, 4);
     EXPECT_TRUE((e.map->at(5, 3) == Color<float>(5, 3, 1)).all());
