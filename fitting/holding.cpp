@@ -22,7 +22,7 @@ bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
 }
 
 template <int P>
-bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params) {
+bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, double significance) {
     using L = BlockLayout<P>;
     std::vector<HeldParams> exponentsHeld = params.held();
     for (int s = 0; s < params.materialCount(); ++s) exponentsHeld[s].n = true;
@@ -44,7 +44,7 @@ bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params) {
             ks.push_back(y[L::specular(g)]);
             ksStd.push_back(stdNatural[s][L::specular(g)]);
         }
-        if (!lobeDetected(ks, ksStd)) indices.push_back(s * P + L::kLogN);
+        if (!lobeDetected(ks, ksStd, significance)) indices.push_back(s * P + L::kLogN);
     }
     return params.hold(indices);
 }
@@ -53,7 +53,7 @@ template bool holdUnconstrained<kRgbBlock>(const Analysis&, const UsedPixels&,
                                            ParameterState<kRgbBlock>&);
 template bool holdUnconstrained<kGreyBlock>(const Analysis&, const UsedPixels&,
                                             ParameterState<kGreyBlock>&);
-template bool holdUnseenExponents<kRgbBlock>(const Analysis&, ParameterState<kRgbBlock>&);
-template bool holdUnseenExponents<kGreyBlock>(const Analysis&, ParameterState<kGreyBlock>&);
+template bool holdUnseenExponents<kRgbBlock>(const Analysis&, ParameterState<kRgbBlock>&, double);
+template bool holdUnseenExponents<kGreyBlock>(const Analysis&, ParameterState<kGreyBlock>&, double);
 
 }  // namespace phongfit

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "analysis.h"
+#include "identifiability.h"
 #include "parameter_state.h"
 #include "used_pixels.h"
 
@@ -15,11 +16,12 @@ template <int P>
 bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
                        ParameterState<P>& params);
 
-// n only shapes the lobe: where no free ks of a material is significantly above 0
-// (lobeDetected), its n is held. The standard errors are least squares' with every material's n
+// n only shapes the lobe: where no free ks of a material is `significance` standard errors above
+// 0 (lobeDetected), its n is held. The standard errors are least squares' with every material's n
 // held: n has no effect at ks = 0, the hypothesis tested, and with n free they would count the
 // trade-off between ks and n that only a lobe has.
 template <int P>
-bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params);
+bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params,
+                         double significance = kLobeSignificance);
 
 }  // namespace phongfit

@@ -39,9 +39,10 @@ std::vector<int> findUnconstrained(const Eigen::MatrixXd& information, double re
     return found;
 }
 
-bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd) {
+bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd,
+                  double significance) {
     for (std::size_t g = 0; g < ks.size(); ++g)
-        if (ks[g] > 0 && ks[g] > kLobeSignificance * ksStd[g]) return true;
+        if (ks[g] > 0 && ks[g] > significance * ksStd[g]) return true;
     return false;
 }
 

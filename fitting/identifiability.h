@@ -15,9 +15,13 @@ inline constexpr double kInvisible = 1e-6;
 // Parameters whose column of J is this close to the span of the columns before it: the fraction
 // of F_jj that the earlier, kept parameters do not explain (1 / variance inflation factor).
 inline constexpr double kCollinear = 1e-9;
-// The specular lobe is detected when some colour group's ks exceeds this many standard errors;
-// otherwise n is not constrained by the images.
+// The specular lobe is pursued, round after round, while some colour group's ks exceeds this many
+// standard errors; otherwise n is not constrained by the images.
 inline constexpr double kLobeSignificance = 2;
+// ... and reported only when it exceeds this many at the final estimate. The lobe's n is fitted:
+// the most significant of many lobe shapes is kept, and 2 standard errors are often reached
+// by the noise alone (a look-elsewhere effect; docs/design/fitter.md).
+inline constexpr double kLobeConfirmation = 3;
 
 // Indices of the parameters not yet `held` that are invisible or collinear with earlier ones.
 // Parameters are tried in index order (per slot kd, then ks, then log n), so of two parameters the
@@ -27,7 +31,8 @@ inline constexpr double kLobeSignificance = 2;
 std::vector<int> findUnconstrained(const Eigen::MatrixXd& information, double residualCount,
                                    double rmsObserved, const std::vector<bool>& held);
 
-// True when some group's ks is significantly above 0 (ks and ksStd per colour group).
-bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd);
+// True when some group's ks exceeds `significance` standard errors (ks and ksStd per colour group).
+bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd,
+                  double significance = kLobeSignificance);
 
 }  // namespace phongfit

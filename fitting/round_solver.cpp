@@ -34,18 +34,32 @@ RoundOutcome RoundSolver<P>::solve(const Estimate& theta) {
     if (firstRound_ && exposure.fitted() && !params_.held(exposure.slot()).n)
         matchExposure(objective_, params_);
     if (firstRound_ && options_.scanStart) scanExponents(objective_, params_);
-    Analysis analysis;
+    solveHolding(out);
+    return out;
+}
+
+template <int P>
+bool RoundSolver<P>::confirmLobes(RoundOutcome& out) {
+    if (!holdUnseenExponents(analysis_, params_, kLobeConfirmation)) return false;
+    solveHolding(out);
+    return true;
+}
+
+template <int P>
+void RoundSolver<P>::solveHolding(RoundOutcome& out) {
+    const UsedPixels& prep = objective_.pixels();
     do {
-        analysis = instrumental_ ? solveInstrumental(out) : solveLeastSquares(out);
+        analysis_ = instrumental_ ? solveInstrumental(out) : solveLeastSquares(out);
         // What the images leave unconstrained is decided at the solution, not on the way.
-    } while (holdUnconstrained(analysis, prep, params_));
+    } while (holdUnconstrained(analysis_, prep, params_));
+    out.materials.clear();
     for (int m = 0; m < params_.materialCount(); ++m)
         out.materials.push_back(materialFit(params_, m, out.naturalStd[m]));
+    const ExposureBlock& exposure = params_.exposure();
     if (exposure.fitted()) out.exposure = exposureFit(params_, out.naturalStd[exposure.slot()]);
-    out.rmse = std::sqrt(analysis.squares / (3.0 * double(prep.seeingMaterial)));
+    out.rmse = std::sqrt(analysis_.squares / (3.0 * double(prep.seeingMaterial)));
     out.pixelsUsed = prep.pixels.size();
     out.leftOut = prep.leftOut;
-    return out;
 }
 
 template <int P>

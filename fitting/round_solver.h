@@ -28,7 +28,15 @@ public:
     // From `theta`; held parameters stay at their start.
     RoundOutcome solve(const Estimate& theta);
 
+    // At the rounds' final estimate: holds the exponents whose lobe falls short of
+    // kLobeConfirmation and, if any, solves again into `out`. True if anything was held.
+    bool confirmLobes(RoundOutcome& out);
+
 private:
+    // The estimator's solves from the parameters' present values, holding what the images leave
+    // unconstrained and solving again until nothing more is held; fills `out`.
+    void solveHolding(RoundOutcome& out);
+
     // The estimators (estimators.cpp): least squares, reweighted for a robust loss, and the
     // cross-product anchor followed by the instrumental-variables moments.
     Analysis solveLeastSquares(RoundOutcome& out);
@@ -45,6 +53,7 @@ private:
     bool instrumental_;
     bool firstRound_;
     Objective<P> objective_;
+    Analysis analysis_;    // at the last solution
     Linearization<P> at_;  // at the last analysis
     Instruments<P> instruments_;
     std::vector<double> leastSquaresWeights_;  // per pixel; empty: all 1

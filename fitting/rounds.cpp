@@ -34,6 +34,15 @@ std::size_t tracedPaths(const std::vector<PathSet>& sets) {
     return paths;
 }
 
+// The estimate `out` ends at; the exposure stays `before`'s where it is not fitted.
+Estimate estimateOf(const RoundOutcome& out, const Estimate& before, bool fitExposure) {
+    Estimate e = before;
+    for (std::size_t s = 0; s < e.materials.size(); ++s)
+        e.materials[s] = out.materials[s].material();
+    if (fitExposure) e.exposure = out.exposure.value;
+    return e;
+}
+
 std::size_t peakResidentBytes() {
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
@@ -84,6 +93,21 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                               threads, round == 0);
         const Estimate recorded = theta;
         RoundOutcome out = solver.solve(theta);
+        // Round 0 recorded at the start, not at an estimate: its move is no difference between
+        // two estimates, and its standard errors, of a replay far from where its paths were
+        // recorded, are the least telling. Only the tolerance applies there.
+        std::vector<std::vector<double>> noise = out.naturalStd;
+        if (round == 0)
+            for (std::vector<double>& block : noise) std::fill(block.begin(), block.end(), 0.0);
+        const Estimate solved = estimateOf(out, theta, options.fitExposure);
+        // Exact sets (the same list as both recordings) give the same problem every round: the
+        // solver's own convergence is the answer.
+        const bool settled = withinTolerance<P>(params.naturalBlocks(recorded),
+                                                params.naturalBlocks(solved), noise, options) ||
+                             (sets.first == sets.second && out.solverConverged);
+        // The final estimate reports only the lobes its recordings confirm.
+        if ((settled || round + 1 == maxRounds) && !solveOptions.stopRequested())
+            solver.confirmLobes(out);
 
         FitRound r;
         r.round = round;
@@ -101,20 +125,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         r.peakMemoryBytes = peakResidentBytes();
         result.rounds.push_back(r);
         if (options.onRound) options.onRound(r);
-        for (std::size_t s = 0; s < start.size(); ++s)
-            theta.materials[s] = out.materials[s].material();
-        if (options.fitExposure) theta.exposure = out.exposure.value;
-        // Round 0 recorded at the start, not at an estimate: its move is no difference between
-        // two estimates, and its standard errors, of a replay far from where its paths were
-        // recorded, are the least telling. Only the tolerance applies there.
-        std::vector<std::vector<double>> noise = out.naturalStd;
-        if (round == 0)
-            for (std::vector<double>& block : noise) std::fill(block.begin(), block.end(), 0.0);
-        // Exact sets (the same list as both recordings) give the same problem every round: the
-        // solver's own convergence is the answer.
-        result.converged = withinTolerance<P>(params.naturalBlocks(recorded),
-                                              params.naturalBlocks(theta), noise, options) ||
-                           (sets.first == sets.second && out.solverConverged);
+        theta = estimateOf(out, theta, options.fitExposure);
+        result.converged = settled;
         result.materials = out.materials;
         if (options.fitExposure) result.exposure = out.exposure;
         result.rmse = out.rmse;

@@ -293,6 +293,10 @@ TEST(Identifiability, FindsInvisibleAndCollinearParameters) {
     EXPECT_TRUE(lobeDetected({0.0, 0.3}, {0.1, 0.1}));
     EXPECT_FALSE(lobeDetected({0.0, 0.15}, {0.1, 0.1}));
     EXPECT_FALSE(lobeDetected({}, {}));
+    // Pursued at 2 standard errors, reported at 3 (kLobeConfirmation).
+    EXPECT_TRUE(lobeDetected({0.25}, {0.1}));
+    EXPECT_FALSE(lobeDetected({0.25}, {0.1}, kLobeConfirmation));
+    EXPECT_TRUE(lobeDetected({0.35}, {0.1}, kLobeConfirmation));
 }
 
 TEST(Uncertainty, SandwichEqualsClassicUnderEqualNoise) {
