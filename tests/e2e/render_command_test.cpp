@@ -43,7 +43,7 @@ TEST_F(RenderCommand, WritesExrPngAndSidecar) {
     EXPECT_EQ(sidecar["seed"], 3);
     EXPECT_EQ(sidecar["spp"], 4);
     EXPECT_EQ(sidecar["sampler"], "mixture");
-    EXPECT_EQ(sidecar["pixel_sampler"], "independent");  // as the scene names it
+    EXPECT_EQ(sidecar["pixel_sampler"], "sobol");  // as the scene names it
     EXPECT_EQ(sidecar["samples"], 4 * 32 * 24);
     EXPECT_EQ(sidecar["interrupted"], false);
     EXPECT_GT(sidecar["rays"].get<double>(), 0);
@@ -62,10 +62,11 @@ TEST_F(RenderCommand, PixelSamplerOverridesTheScenes) {
         all.insert(all.end(), extra.begin(), extra.end());
         return test::runProcess(all);
     };
-    ASSERT_EQ(with({"-o", path("i.exr")}).exitCode, 0);
-    const auto r = with({"-o", path("s.exr"), "--pixel-sampler", "sobol"});
+    ASSERT_EQ(with({"-o", path("s.exr")}).exitCode, 0);  // the scene names sobol
+    const auto r = with({"-o", path("i.exr"), "--pixel-sampler", "independent"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    EXPECT_EQ(nlohmann::json::parse(std::ifstream(path("s.exr.json")))["pixel_sampler"], "sobol");
+    EXPECT_EQ(nlohmann::json::parse(std::ifstream(path("i.exr.json")))["pixel_sampler"],
+              "independent");
     const Image independent = readImage(path("i.exr")), sobol = readImage(path("s.exr"));
     ASSERT_EQ(independent.rgb.size(), sobol.rgb.size());
     double a = 0, b = 0;
