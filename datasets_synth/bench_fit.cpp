@@ -92,6 +92,7 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
     const SceneRecording recording{spp, 0, 0, o.threads, o.adaptiveSpp};
     FitOptions options;
     options.maxRounds = o.rounds;
+    options.precision = o.precision;
     options.grey = s.grey;
     options.threads = o.threads;
     options.stopRequested = interruptRequested;
@@ -148,6 +149,7 @@ json settingsJson(const BenchFitOptions& o) {
             {"n_tolerance", o.nTolerance},
             {"rounds", o.rounds},
             {"adaptive_spp", o.adaptiveSpp},
+            {"precision", o.precision},
             {"fail_threshold", o.failThreshold}};
 }
 
@@ -165,6 +167,7 @@ void applySettings(const json& s, BenchFitOptions& o) {
     o.nTolerance = s.at("n_tolerance").get<double>();
     o.rounds = s.at("rounds").get<int>();
     o.adaptiveSpp = s.at("adaptive_spp").get<int>();
+    o.precision = s.value("precision", 0.0);  // runs before it had none
     o.failThreshold = s.at("fail_threshold").get<double>();
 }
 

@@ -44,6 +44,9 @@ FitResult fit(const std::vector<Observation>& observations, const RecordAll& rec
                         "{} and loss scale {} > 0, std tolerance {} >= 0",
                         maxRounds, options.maxIterations, options.tolerance, options.lossScale,
                         options.stdTolerance));
+    if (!(options.precision >= 0 && options.precision < 1))
+        throw Error(fmt::format("fit options: precision {} must be in [0, 1) (0: no target)",
+                                options.precision));
     for (std::size_t s = 0; s < start.size(); ++s)
         validatePhong(start[s], fmt::format("start value of material {}", s));
     for (std::size_t v = 0; v < observations.size(); ++v) checkObservation(observations[v], int(v));
@@ -57,13 +60,14 @@ FitResult fitMaterials(const std::vector<Observation>& observations, const PathR
                        const std::vector<PhongMaterial>& start, const FitOptions& options) {
     std::array<std::vector<PathSet>, 2> paths;
     const RecordAll recordAll = [&](const std::vector<PhongMaterial>& theta, int round,
-                                    const std::vector<std::vector<float>>& importance) {
+                                    const std::vector<std::vector<float>>& importance,
+                                    double pathFactor) {
         static const std::vector<float> none;
         for (int k = 0; k < 2; ++k) {
             paths[k].clear();
             for (std::size_t v = 0; v < observations.size(); ++v)
                 paths[k].push_back(record(int(v), theta, 2 * round + k,
-                                          importance.empty() ? none : importance[v]));
+                                          importance.empty() ? none : importance[v], pathFactor));
         }
         return RoundSets{&paths[0], &paths[1]};
     };
@@ -75,7 +79,7 @@ FitResult fitPathSets(const std::vector<Observation>& observations,
                       const std::vector<PhongMaterial>& start, const FitOptions& options,
                       int rounds) {
     const RecordAll recordAll = [&](const std::vector<PhongMaterial>&, int,
-                                    const std::vector<std::vector<float>>&) {
+                                    const std::vector<std::vector<float>>&, double) {
         return RoundSets{&first, &second};
     };
     return fit(observations, recordAll, start, options, rounds);

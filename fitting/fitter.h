@@ -112,6 +112,12 @@ struct FitOptions {
     // round's time says would end past it, and a solve under way at the limit stops there; the
     // first round always runs. The result then says "time budget".
     double timeBudget = 0;
+    // Target relative standard error of every free parameter (kd, ks: std / max(value, 0.01); n:
+    // std / n), 0 for none. Once the estimate has stopped moving and a parameter is less precise,
+    // the next rounds record more paths (PathRecorder's pathFactor) until the target is met
+    // ("precision"), more paths cannot meet it because the images' own noise dominates ("noise
+    // floor"), or the rounds or the time budget are spent; only the first two are converged.
+    double precision = 0;
     int threads = 0;       // 0 = all hardware threads
     bool verbose = false;  // Ceres' progress on stdout and its brief report on stderr
     std::function<void(const FitRound&)> onRound;  // called after each round, e.g. for progress
@@ -131,9 +137,11 @@ struct FitResult {
     // as both recordings), the solver converged; and every free parameter is resolved.
     bool converged = false;
     bool interrupted = false;  // FitOptions::stopRequested cut the fit short
-    // Why the rounds stopped: "converged", "unresolved" (the estimate stopped moving, but some
-    // parameter's standard error is as large as itself: unresolvedParameters), "rounds"
-    // (FitOptions::maxRounds spent), "time budget" (FitOptions::timeBudget) or "interrupted".
+    // Why the rounds stopped: "converged", "precision" or "noise floor" (FitOptions::precision),
+    // "unresolved" (the estimate stopped moving, but some parameter's standard error is as large
+    // as itself: unresolvedParameters), "rounds" (FitOptions::maxRounds spent), "precision not
+    // met" (they were spent after the estimate had stopped moving), "time budget"
+    // (FitOptions::timeBudget) or "interrupted".
     std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
@@ -147,8 +155,12 @@ struct FitResult {
 // from `recording` (e.g. seed it with it). `importance` (empty in the first round) says per pixel
 // how much a path there is worth to the estimate (path_importance.h): a recorder that spends extra
 // paths in proportion to it (fixed before tracing) gets more precision for its time.
-using PathRecorder = std::function<PathSet(int view, const std::vector<PhongMaterial>& theta0,
-                                           int recording, const std::vector<float>& importance)>;
+// `pathFactor` (>= 1; 1 in the first round) is how many times the first round's paths the fitter
+// asks for in the pixels that see a fitted material (FitOptions::precision), the extra ones spent
+// by `importance` too.
+using PathRecorder =
+    std::function<PathSet(int view, const std::vector<PhongMaterial>& theta0, int recording,
+                          const std::vector<float>& importance, double pathFactor)>;
 
 // The rounds loop. `start` (one material per slot, each valid) is the first estimate and the value
 // unconstrained parameters are held at. Path sets must match their observation's size and have

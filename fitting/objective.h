@@ -42,6 +42,7 @@ public:
         Eigen::MatrixXd momentJacobian;
         std::vector<Eigen::Index> indices;  // of the pixel's natural coordinates
         Eigen::VectorXd cross;
+        Eigen::VectorXd meanScore, pathScore;
     };
 
     // `instrumental`: replay both recordings (else the least-squares sets); `radius`: see

@@ -13,6 +13,7 @@
 #include "fit_input.h"
 #include "parameter_state.h"
 #include "path_importance.h"
+#include "precision_target.h"
 #include "round_paths.h"
 #include "round_solver.h"
 
@@ -59,7 +60,6 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     const int threads = options.threads > 0 ? options.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
     FitResult result;
-    result.stopReason = "rounds";
     // A solve under way stops at the time budget as at an interrupt; which one it was is told
     // apart afterwards.
     const auto budgetSpent = [&] {
@@ -72,14 +72,16 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     ParameterState<P> params(start, options.fitExposure);
     Estimate theta{start, 1.0};
     std::vector<std::vector<float>> importance;  // per view, for the next round's recording
+    double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
     for (int round = 0; round < maxRounds; ++round) {
+        result.stopReason = "rounds";
         if (round > 0 && options.timeBudget > 0 &&
-            secondsSince(begin) + result.rounds.back().timeSeconds > options.timeBudget) {
+            secondsSince(begin) + growth * result.rounds.back().timeSeconds > options.timeBudget) {
             result.stopReason = "time budget";
             break;
         }
         const auto roundBegin = std::chrono::steady_clock::now();
-        const RoundSets sets = recordAll(theta.materials, round, importance);
+        const RoundSets sets = recordAll(theta.materials, round, importance, pathFactor);
         const double recordSeconds = secondsSince(roundBegin);
         for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
             if (paths->size() != observations.size())
@@ -139,14 +141,33 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             result.converged = false;
             break;
         }
+        growth = 1;
         if (result.converged) {
             // Stopped moving, but not at a solution the recordings resolve: say so.
             const bool resolved =
                 std::all_of(out.materials.begin(), out.materials.end(),
                             [](const MaterialFit& m) { return unresolvedParameters(m).empty(); });
-            result.converged = resolved;
-            result.stopReason = resolved ? "converged" : "unresolved";
-            break;
+            const bool planned = options.precision > 0 && sets.first != sets.second;
+            const PrecisionPlan plan = planned
+                                           ? planPrecision<P>(params, out.naturalStd, out.pathShare,
+                                                              options.precision, pathFactor)
+                                           : PrecisionPlan{true, false, 1};
+            if (plan.met || plan.floor) {
+                result.converged = resolved;
+                result.stopReason = !resolved  ? "unresolved"
+                                    : !planned ? "converged"
+                                    : plan.met ? "precision"
+                                               : "noise floor";
+                break;
+            }
+            // More paths where the estimate is not yet as precise as asked.
+            result.converged = false;
+            result.stopReason = "precision not met";
+            growth = plan.pathGrowth;
+            if (options.timeBudget > 0)
+                growth = std::clamp((options.timeBudget - secondsSince(begin)) / r.timeSeconds, 1.0,
+                                    growth);
+            pathFactor *= growth;
         }
         if (sets.first != sets.second && round + 1 < maxRounds) {
             // Material blocks only: the exposure is global, no pixel's paths inform it more.

@@ -18,9 +18,10 @@ struct RoundSets {
 };
 
 // Records (or hands out) round `round`'s sets at the materials' estimate; `importance` per view
-// and pixel (path_importance.h), empty in the first round.
-using RecordAll = std::function<RoundSets(const std::vector<PhongMaterial>&, int round,
-                                          const std::vector<std::vector<float>>& importance)>;
+// and pixel (path_importance.h), empty in the first round; `pathFactor` as PathRecorder's.
+using RecordAll =
+    std::function<RoundSets(const std::vector<PhongMaterial>&, int round,
+                            const std::vector<std::vector<float>>& importance, double pathFactor)>;
 
 // At most `maxRounds` rounds from `start` on inputs fitMaterials has checked; P is the block size
 // (kRgbBlock, or kGreyBlock with FitOptions::grey). Throws Error when the recorder's sets do not

@@ -617,7 +617,7 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
     std::vector<std::pair<int, PhongMaterial>> calls;
     // Each recording differs (terms split in recording + 1 parts), the same model.
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
-                                    int recording, const std::vector<float>&) {
+                                    int recording, const std::vector<float>&, double) {
         EXPECT_EQ(view, 0);
         calls.emplace_back(recording, theta0.at(0));
         SphereScene s = scene;
@@ -660,7 +660,7 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
 // from seed + the recording's index.
 PathRecorder noisyRecorder(const SphereScene& scene, unsigned seed) {
     return [scene, seed](int, const std::vector<PhongMaterial>&, int recording,
-                         const std::vector<float>&) {
+                         const std::vector<float>&, double) {
         PathSet ps = makePaths(scene);
         std::mt19937 rng(seed + unsigned(recording));
         std::normal_distribution<float> noise(0, 0.1f);
@@ -713,7 +713,7 @@ TEST(Fitter, StopRequestEndsTheFitAfterTheRoundUnderWayWithItsEstimate) {
     const Observation obs = observe(makePaths(scene), {kTruth});
     bool stop = false;
     const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
-                                    const std::vector<float>&) {
+                                    const std::vector<float>&, double) {
         stop = stop || recording == 3;  // the signal comes while round 1 records its second set
         PathSet ps = makePaths(scene);
         std::mt19937 rng(200 + recording);
@@ -778,7 +778,7 @@ TEST(Fitter, RoundsOnFreshNoisyPathSetsConvergeToTheTruth) {
     const Observation obs = observe(exact, {truth});
     std::vector<int> recordings;
     const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
-                                    const std::vector<float>&) {
+                                    const std::vector<float>&, double) {
         recordings.push_back(recording);
         return noisy(exact, 10 + unsigned(recording));
     };

@@ -179,16 +179,20 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
                    const FitOptions& options) {
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0, int round,
-                                    const std::vector<float>& importance) -> PathSet {
+                                    const std::vector<float>& importance,
+                                    double pathFactor) -> PathSet {
         const SceneView& v = problem.views[view];
         RecordOptions o;
         o.spp = recording.spp;
         o.directSpp = recording.directSpp;
-        if (!importance.empty() && recording.adaptiveSpp > 0) {
+        // Per pixel that sees a fitted material: --adaptive-spp, and what --precision asks for.
+        const double extra =
+            recording.adaptiveSpp +
+            (pathFactor - 1) * (recording.directSpp > 0 ? recording.directSpp : recording.spp);
+        if (!importance.empty() && extra > 0) {
             const auto seen =
                 std::count_if(importance.begin(), importance.end(), [](float w) { return w > 0; });
-            o.extraPaths = allocatePaths(importance, double(recording.adaptiveSpp) * double(seen),
-                                         kMostExtraPaths);
+            o.extraPaths = allocatePaths(importance, extra * double(seen), kMostExtraPaths);
         }
         o.seed = recording.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
         o.threads = recording.threads;

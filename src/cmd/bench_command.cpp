@@ -78,6 +78,10 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
                     "extra paths per pixel after the first round, as fit --adaptive-spp")
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
+    fit->add_option("--precision", f->precision,
+                    "target relative standard error of every free parameter, as fit --precision")
+        ->check(CLI::Range(0.0, 0.5))
+        ->capture_default_str();
     fit->add_option("--fail-threshold", f->failThreshold,
                     "a fit with a relative error above this fails")
         ->capture_default_str();
@@ -93,9 +97,10 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
     fit->add_option("--merge", *merge, "write the tables of DIR once every shard's fits are done");
     fit->callback([fit, f, startKd, startKs, shard, merge, parseOnly] {
         if (!merge->empty()) {
-            for (const char* option : {"dataset", "--output", "--shard", "--spp-per-round",
-                                       "--start-kd", "--start-ks", "--start-n", "--start-n-factor",
-                                       "--rounds", "--adaptive-spp", "--fail-threshold"})
+            for (const char* option :
+                 {"dataset", "--output", "--shard", "--spp-per-round", "--start-kd", "--start-ks",
+                  "--start-n", "--start-n-factor", "--rounds", "--adaptive-spp", "--precision",
+                  "--fail-threshold"})
                 if (fit->count(option) > 0)
                     throw Error(fmt::format(
                         "--merge DIR takes no {}: the run's settings are in DIR/bench_run.json",

@@ -34,7 +34,7 @@ struct FitCli {
     std::vector<std::string> views, materials, defines;
     std::string kd, ks;
     std::optional<double> n;
-    double timeBudget = 0;
+    double timeBudget = 0, precision = 0;
     int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
     bool fitExposure = false, ignoreNonFinite = false;
     std::uint64_t seed = 0;
@@ -76,6 +76,7 @@ void runSceneFit(const FitCli& a) {
     options.fitExposure = a.fitExposure;
     options.maxRounds = a.rounds;
     options.timeBudget = a.timeBudget;
+    options.precision = a.precision;
     requireOutputDirectory(a.output);
     for (const std::string& spec : a.views) {
         const auto colon = spec.rfind(':');
@@ -277,6 +278,14 @@ void addFitCommand(CLI::App& app) {
                      "seconds the fit may take, recording included: no round starts that would "
                      "end past it (the first always runs); the report then says not converged")
         ->check(CLI::NonNegativeNumber);
+    scene
+        ->add_option("--precision", a->precision,
+                     "target relative standard error of every free parameter (kd, ks: of "
+                     "max(value, 0.01); n: of n): once the estimate stops moving, rounds record "
+                     "more paths where they inform it until every parameter is this precise or the "
+                     "images' own noise stands in the way (0: no target)")
+        ->check(CLI::Range(0.0, 0.5))
+        ->capture_default_str();
     scene
         ->add_option("--adaptive-spp", a->adaptiveSpp,
                      "after the first round, this many more paths per pixel that sees a fitted "

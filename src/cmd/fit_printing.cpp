@@ -15,6 +15,11 @@ namespace {
 std::string notConvergedBecause(const FitResult& result) {
     if (result.stopReason == "time budget") return "the time budget was spent";
     if (result.stopReason == "interrupted") return "interrupted";
+    if (result.stopReason == "precision not met")
+        return fmt::format(
+            "the estimate stopped moving, but not every parameter is as precise as --precision "
+            "asks after {} rounds (--rounds)",
+            result.rounds.size());
     if (result.stopReason == "unresolved") {
         std::vector<std::string> names;
         for (const MaterialFit& m : result.materials)
@@ -65,12 +70,19 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
                          "ks; held where the start materials match their brightness, or as far "
                          "above as kd + ks <= 1 needs)"
                        : "");
-    fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
-               result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
-               result.converged ? " (converged)"
-                                : fmt::format(" (not converged: {})", notConvergedBecause(result)),
-               result.timeSeconds, problem.views[0].depthNote,
-               (std::filesystem::path(dir) / "fit.json").string());
+    fmt::print(
+        "rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
+        result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
+        result.converged
+            ? fmt::format(" (converged{})", result.stopReason == "precision" ? ": precision reached"
+                                            : result.stopReason == "noise floor"
+                                                ? " at the images' noise floor: "
+                                                  "more paths cannot meet "
+                                                  "--precision"
+                                                : "")
+            : fmt::format(" (not converged: {})", notConvergedBecause(result)),
+        result.timeSeconds, problem.views[0].depthNote,
+        (std::filesystem::path(dir) / "fit.json").string());
 }
 
 }  // namespace phongfit

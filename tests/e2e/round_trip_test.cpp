@@ -286,6 +286,39 @@ TEST_F(RoundTrip, NoLobeLeavesNUnconstrainedEvenAtItsLowerBound) {
     }
 }
 
+// --precision: once the estimate stops moving, rounds record more paths where they inform it
+// until every free parameter's relative standard error is below the target. At 4 paths per
+// pixel the point-lit coloured lobe (a few pixels across at 64 x 64) stops at ks +- 3%, n +- 5%;
+// asked for 0.5%, the paths grow and the fit reports "precision" with errors that cover the
+// truth. An image rendered at 4 paths per pixel holds too little to reach it: "noise floor".
+TEST_F(RoundTrip, PrecisionTargetSpendsPathsUntilMetOrAtTheImagesNoiseFloor) {
+    const std::map<std::string, std::string> truth = {
+        {"kd", "0.45,0.4,0.3"}, {"ks", "0.5"}, {"n", "300"}, {"width", "64"}, {"height", "64"}};
+    std::vector<std::string> extra = {"--kd", "0.3",   "--ks",        "0.3",
+                                      "--n",  "30000", "--precision", "0.005"};
+    const auto d = defines(truth);
+    extra.insert(extra.end(), d.begin(), d.end());
+    const auto report = fit({kPoint + ":" + render(kPoint, truth, "clean", 256)}, extra, "fit");
+    EXPECT_EQ(report["stop_reason"], "precision");
+    EXPECT_TRUE(report["converged"].get<bool>());
+    const auto& rounds = report["rounds"];
+    ASSERT_GE(rounds.size(), 3u);
+    EXPECT_GT(rounds.back()["paths"].get<double>(), 1.5 * rounds[0]["paths"].get<double>());
+    const auto& m = report["materials"]["sphere"];
+    const double kd[3] = {0.45, 0.4, 0.3};
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_LE(m["kd_std"][c].get<double>(), 0.005 * kd[c]);
+        EXPECT_LE(m["ks_std"][c].get<double>(), 0.005 * 0.5);
+        EXPECT_LT(std::abs(m["kd"][c].get<double>() - kd[c]), 3 * m["kd_std"][c].get<double>());
+        EXPECT_LT(std::abs(m["ks"][c].get<double>() - 0.5), 3 * m["ks_std"][c].get<double>());
+    }
+    EXPECT_LE(m["n_std"].get<double>(), 0.005 * m["n"].get<double>());
+    EXPECT_LT(std::abs(m["n"].get<double>() - 300), 3 * m["n_std"].get<double>());
+
+    const auto noisy = fit({kPoint + ":" + render(kPoint, truth, "noisy", 4)}, extra, "noisy");
+    EXPECT_EQ(noisy["stop_reason"], "noise floor");
+}
+
 TEST_F(RoundTrip, NoDiffuseAndEnergyConservingExtremes) {
     for (const auto& [kd, ks] : {std::pair{0.0, 0.7}, std::pair{0.35, 0.65}}) {
         const std::map<std::string, std::string> truth = {{"kd", std::to_string(kd)},

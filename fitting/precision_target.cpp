@@ -1,0 +1,52 @@
+#include "precision_target.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "convergence.h"
+
+namespace phongfit {
+
+template <int P>
+PrecisionPlan planPrecision(const ParameterState<P>& params,
+                            const std::vector<std::vector<double>>& naturalStd,
+                            const std::vector<std::vector<double>>& pathShare, double target,
+                            double pathFactor) {
+    using L = BlockLayout<P>;
+    PrecisionPlan plan;
+    const double goal = target * target;
+    bool allMet = true, allUnmetAtFloor = true;
+    const std::vector<bool> held = params.heldFlags();
+    for (int s = 0; s < params.materialCount(); ++s) {
+        const typename ParameterState<P>::NaturalVector y = params.natural(s);
+        for (int i = 0; i < P; ++i) {
+            if (held[std::size_t(s * P + i)]) continue;
+            const double scale = i == L::kLogN ? 1.0 : std::max(std::abs(y[i]), kReflectanceFloor);
+            const double variance = std::pow(naturalStd[s][i] / scale, 2);
+            if (variance <= goal) continue;
+            allMet = false;
+            const double share = std::clamp(pathShare[s][i], 0.0, 1.0);
+            const double fromImage = (1 - share) * variance, fromPaths = share * variance;
+            if (fromImage >= goal && pathFactor >= kMostPathGrowth) continue;
+            allUnmetAtFloor = false;
+            plan.pathGrowth =
+                std::max(plan.pathGrowth, fromImage >= goal ? kMostPathGrowth / pathFactor
+                                                            : fromPaths / (goal - fromImage));
+        }
+    }
+    plan.met = allMet;
+    plan.floor = !allMet && allUnmetAtFloor;
+    plan.pathGrowth = std::min(plan.pathGrowth, kMostPathGrowth);
+    return plan;
+}
+
+template PrecisionPlan planPrecision<kRgbBlock>(const ParameterState<kRgbBlock>&,
+                                                const std::vector<std::vector<double>>&,
+                                                const std::vector<std::vector<double>>&, double,
+                                                double);
+template PrecisionPlan planPrecision<kGreyBlock>(const ParameterState<kGreyBlock>&,
+                                                 const std::vector<std::vector<double>>&,
+                                                 const std::vector<std::vector<double>>&, double,
+                                                 double);
+
+}  // namespace phongfit

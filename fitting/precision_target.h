@@ -1,0 +1,36 @@
+// FitOptions::precision: whether a round's estimate is as precise as asked and, if not, how many
+// more paths the next round needs or whether the image's own noise stands in the way
+// (docs/design/fitter.md, "A precision target").
+#pragma once
+
+#include <vector>
+
+#include "parameter_state.h"
+
+namespace phongfit {
+
+// The most the paths may grow from one round to the next: the shares below are estimates from one
+// round, and a round at the new estimate measures them again. A parameter is said to be at the
+// noise floor only once the paths have grown this much: far from the solution the misfit of a
+// lobe the recordings do not yet resolve looks like the image's noise.
+inline constexpr double kMostPathGrowth = 16;
+
+struct PrecisionPlan {
+    bool met = false;       // every free parameter's relative standard error is at most the target
+    bool floor = false;     // not met, and more paths cannot get there: the image's own noise
+    double pathGrowth = 1;  // the next round's paths relative to this round's, in [1, growth cap]
+};
+
+// From a round's standard errors `naturalStd` and the share of each variance that is the
+// recordings' own noise, `pathShare` (per material block, natural coordinates; the exposure block,
+// if any, is left out), for relative standard error `target` (kd and ks: std / max(value, 0.01);
+// n: std of log n). A parameter whose variance from the image alone exceeds target^2 is at the
+// noise floor; the others need paths m times as many, m = path variance / (target^2 - image
+// variance). `pathFactor`: the round's paths relative to the first round's.
+template <int P>
+PrecisionPlan planPrecision(const ParameterState<P>& params,
+                            const std::vector<std::vector<double>>& naturalStd,
+                            const std::vector<std::vector<double>>& pathShare, double target,
+                            double pathFactor);
+
+}  // namespace phongfit

@@ -1,0 +1,92 @@
+// The precision target's plan (precision_target.h): met, more paths, or the images' noise floor,
+// checked against the variance split worked out by hand.
+#include "precision_target.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace phongfit {
+namespace {
+
+using L = BlockLayout<kRgbBlock>;
+constexpr int P = kRgbBlock;
+
+PhongMaterial material(double kd, double ks) {
+    PhongMaterial m;
+    m.kd = Color3::Constant(kd);
+    m.ks = Color3::Constant(ks);
+    m.n = 30;
+    return m;
+}
+
+ParameterState<P> stateAt(const PhongMaterial& m) {
+    ParameterState<P> s({m}, false);
+    s.startAt({{m}, 1.0});
+    return s;
+}
+
+ParameterState<P> state() { return stateAt(material(0.5, 0.2)); }
+
+// Standard errors (natural coordinates) giving every parameter the relative error `relative`.
+std::vector<std::vector<double>> stdAt(double relative) {
+    std::vector<double> s(P);
+    for (int g = 0; g < L::kGroups; ++g) {
+        s[std::size_t(L::diffuse(g))] = relative * 0.5;
+        s[std::size_t(L::specular(g))] = relative * 0.2;
+    }
+    s[L::kLogN] = relative;
+    return {s};
+}
+
+std::vector<std::vector<double>> shareOf(double share) { return {std::vector<double>(P, share)}; }
+
+TEST(PrecisionTarget, MetWhenEveryFreeParameterIsAsPrecise) {
+    const PrecisionPlan plan = planPrecision<P>(state(), stdAt(0.009), shareOf(1), 0.01, 1);
+    EXPECT_TRUE(plan.met);
+    EXPECT_FALSE(plan.floor);
+    EXPECT_EQ(plan.pathGrowth, 1);
+}
+
+TEST(PrecisionTarget, PathsGrowByThePathVarianceOverWhatTheImageLeaves) {
+    // Relative variance 4e-4 for a goal of 1e-4: with half of it the image's (2e-4 > 1e-4) the
+    // target is out of reach; with a quarter (1e-4 of image, 3e-4 of paths) still; with a tenth
+    // (0.4e-4 image, 3.6e-4 paths) the paths must grow 3.6 / (1 - 0.4) = 6 times.
+    const PrecisionPlan tenth = planPrecision<P>(state(), stdAt(0.02), shareOf(0.9), 0.01, 1);
+    EXPECT_FALSE(tenth.met);
+    EXPECT_FALSE(tenth.floor);
+    EXPECT_NEAR(tenth.pathGrowth, 6, 1e-9);
+    // All paths: 4x.
+    EXPECT_NEAR(planPrecision<P>(state(), stdAt(0.02), shareOf(1), 0.01, 1).pathGrowth, 4, 1e-9);
+    // Far off, capped at kMostPathGrowth.
+    EXPECT_EQ(planPrecision<P>(state(), stdAt(1), shareOf(1), 0.01, 1).pathGrowth, kMostPathGrowth);
+}
+
+TEST(PrecisionTarget, TheNoiseFloorIsClaimedOnlyOnceThePathsHaveGrown) {
+    // Image-dominated: first more paths (the misfit of an unresolved lobe looks like image
+    // noise), then, with kMostPathGrowth times the paths, the floor.
+    const PrecisionPlan early = planPrecision<P>(state(), stdAt(0.02), shareOf(0.5), 0.01, 1);
+    EXPECT_FALSE(early.floor);
+    EXPECT_EQ(early.pathGrowth, kMostPathGrowth);
+    const PrecisionPlan late =
+        planPrecision<P>(state(), stdAt(0.02), shareOf(0.5), 0.01, kMostPathGrowth);
+    EXPECT_TRUE(late.floor);
+    EXPECT_FALSE(late.met);
+}
+
+TEST(PrecisionTarget, HeldParametersAndSmallReflectancesOnTheirFloor) {
+    ParameterState<P> s = state();
+    // n held (unconstrained): its huge standard error does not count.
+    s.hold({L::kLogN});
+    std::vector<std::vector<double>> std = stdAt(0.005);
+    std[0][L::kLogN] = 10;
+    EXPECT_TRUE(planPrecision<P>(s, std, shareOf(1), 0.01, 1).met);
+    // A reflectance of 0.001 is compared with 0.01 (kReflectanceFloor): std 5e-5 is 0.5%.
+    std = stdAt(0.005);
+    for (int g = 0; g < L::kGroups; ++g)
+        std[0][std::size_t(L::diffuse(g))] = std[0][std::size_t(L::specular(g))] = 5e-5;
+    EXPECT_TRUE(planPrecision<P>(stateAt(material(0.001, 0.001)), std, shareOf(1), 0.01, 1).met);
+}
+
+}  // namespace
+}  // namespace phongfit
