@@ -21,7 +21,7 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
     }
     const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
     const Eigen::MatrixXd zeros = Eigen::MatrixXd::Zero(size, size);
-    const Analysis zero{zeros, zeros, Eigen::MatrixXd(), zeros, zeros, zeros, zeros, zeros, 0.0};
+    const Analysis zero{zeros, zeros, Eigen::MatrixXd(), zeros, zeros, zeros, 0.0};
     Analysis result = objective.sumPixels(
         prep.pixels.size(), zero,
         [&](std::size_t i, Analysis& sum, typename Objective<P>::Scratch& scratch) {
@@ -55,14 +55,7 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
                         l.segment<P>(Eigen::Index(b) * P).transpose();
             if (sets == 2) {
                 Eigen::VectorXd& c = scratch.cross;
-                Eigen::VectorXd &m = scratch.meanScore, &q = scratch.pathScore;
                 c.setZero(Eigen::Index(u.slotCount) * P);
-                m.setZero(Eigen::Index(u.slotCount) * P);
-                q.setZero(Eigen::Index(u.slotCount) * P);
-                const Eigen::Vector3d halfSum = 0.5 * (at.residuals[0][i] + at.residuals[1][i]);
-                const Eigen::Vector3d halfDifference =
-                    0.5 * (at.residuals[0][i] - at.residuals[1][i]);
-                const double rho = 0.5 * (at.weights[0][i] + at.weights[1][i]);
                 for (std::uint32_t a = 0; a < u.slotCount; ++a) {
                     const Jacobian& ja = at.jacobians[0][u.slotBegin + a];
                     const Jacobian& jb = at.jacobians[1][u.slotBegin + a];
@@ -70,12 +63,6 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
                                          at.residuals[1][i]);
                     addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, jb,
                                          at.residuals[0][i]);
-                    for (const Jacobian* j : {&ja, &jb}) {
-                        addPackedGradient<P>(m.segment<P>(Eigen::Index(a) * P), 0.5 * rho, *j,
-                                             halfSum);
-                        addPackedGradient<P>(q.segment<P>(Eigen::Index(a) * P), 0.5 * rho, *j,
-                                             halfDifference);
-                    }
                     for (std::uint32_t b = 0; b < u.slotCount; ++b) {
                         addPackedGram<P>(sum.crossGram.block<P, P>(where(a), where(b)), 0.5, ja,
                                          at.jacobians[1][u.slotBegin + b]);
@@ -84,17 +71,10 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
                     }
                 }
                 for (std::uint32_t a = 0; a < u.slotCount; ++a)
-                    for (std::uint32_t b = 0; b < u.slotCount; ++b) {
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
                         sum.crossScores.block<P, P>(where(a), where(b)) +=
                             c.segment<P>(Eigen::Index(a) * P) *
                             c.segment<P>(Eigen::Index(b) * P).transpose();
-                        sum.meanScores.block<P, P>(where(a), where(b)) +=
-                            m.segment<P>(Eigen::Index(a) * P) *
-                            m.segment<P>(Eigen::Index(b) * P).transpose();
-                        sum.pathScores.block<P, P>(where(a), where(b)) +=
-                            q.segment<P>(Eigen::Index(a) * P) *
-                            q.segment<P>(Eigen::Index(b) * P).transpose();
-                    }
             }
             if (!moments) return;
             pixelMoment<P>(at, instruments, sets, i, u, scratch.moment, &scratch.momentJacobian);

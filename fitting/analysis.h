@@ -23,11 +23,6 @@ struct Analysis {
     // With two sets A and B, the cross-product least squares' sum of (J_A^T J_B + J_B^T J_A) / 2
     // and of c c^T, c = (J_A^T r_B + J_B^T r_A) / 2.
     Eigen::MatrixXd crossGram, crossScores;
-    // With two sets, Jbar the sets' mean Jacobian: the sum of m m^T, m = rho' Jbar^T (r_A + r_B)
-    // / 2, and of q q^T, q = rho' Jbar^T (r_A - r_B) / 2, the part of it that is the recordings'
-    // own noise (the half difference carries the recordings' noise of the mean prediction and
-    // none of the image's).
-    Eigen::MatrixXd meanScores, pathScores;
     double squares = 0;  // of the mean prediction's error, unweighted, where a material is seen
 
     Analysis& operator+=(const Analysis& other) {
@@ -36,8 +31,6 @@ struct Analysis {
         leastSquaresScores += other.leastSquaresScores;
         crossGram += other.crossGram;
         crossScores += other.crossScores;
-        meanScores += other.meanScores;
-        pathScores += other.pathScores;
         squares += other.squares;
         return *this;
     }

@@ -3,8 +3,11 @@
 // (docs/design/fitter.md, "A precision target").
 #pragma once
 
+#include <Eigen/Core>
 #include <vector>
 
+#include "instruments.h"
+#include "objective.h"
 #include "parameter_state.h"
 
 namespace phongfit {
@@ -14,6 +17,17 @@ namespace phongfit {
 // noise floor only once the paths have grown this much: far from the solution the misfit of a
 // lobe the recordings do not yet resolve looks like the image's noise.
 inline constexpr double kMostPathGrowth = 16;
+
+// Per block, the share of each parameter's variance that is the recordings' own noise (the rest is
+// the image's), at the linearization `at` of a round's solution with its Gram matrix `gram`: the
+// least-squares sandwich, with the sets' mean Jacobian Jbar, of m = rho' Jbar^T (r_A + r_B) / 2
+// and of its part q = rho' Jbar^T (r_A - r_B) / 2 (the half difference carries the recordings'
+// noise of the mean prediction and none of the image's). 0 with fewer than two sets: exact or
+// pooled sets leave no difference to measure it by.
+template <int P>
+std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const Linearization<P>& at,
+                                                const Eigen::MatrixXd& gram,
+                                                const std::vector<HeldParams>& held);
 
 struct PrecisionPlan {
     bool met = false;       // every free parameter's relative standard error is at most the target

@@ -16,9 +16,8 @@ struct RoundOutcome {
     std::vector<MaterialFit> materials;
     ExposureFit exposure;                         // with FitOptions::fitExposure
     std::vector<std::vector<double>> naturalStd;  // per block, in natural coordinates
-    // Per block, the share of each parameter's variance that is the recordings' own noise (the
-    // rest is the image's), from least squares' sandwich (Analysis::meanScores, pathScores); 0 on
-    // exact sets.
+    // With FitOptions::precision, per block, the share of each parameter's variance that is the
+    // recordings' own noise (recordingShare); else empty.
     std::vector<std::vector<double>> pathShare;
     double rmse = 0;
     int iterations = 0;

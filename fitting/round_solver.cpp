@@ -1,9 +1,9 @@
 #include "round_solver.h"
 
-#include <algorithm>
 #include <cmath>
 
 #include "holding.h"
+#include "precision_target.h"
 #include "standard_errors.h"
 #include "start_scan.h"
 
@@ -53,14 +53,8 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out) {
         analysis_ = instrumental_ ? solveInstrumental(out) : solveLeastSquares(out);
         // What the images leave unconstrained is decided at the solution, not on the way.
     } while (holdUnconstrained(analysis_, prep, params_));
-    const std::vector<std::vector<double>> fromPaths =
-        naturalStd(analysis_.gram, analysis_.pathScores);
-    const std::vector<std::vector<double>> all = naturalStd(analysis_.gram, analysis_.meanScores);
-    out.pathShare = fromPaths;
-    for (std::size_t b = 0; b < all.size(); ++b)
-        for (std::size_t i = 0; i < all[b].size(); ++i)
-            out.pathShare[b][i] =
-                all[b][i] > 0 ? std::min(1.0, std::pow(fromPaths[b][i] / all[b][i], 2)) : 0.0;
+    if (options_.precision > 0)
+        out.pathShare = recordingShare(objective_, at_, analysis_.gram, params_.held());
     out.materials.clear();
     for (int m = 0; m < params_.materialCount(); ++m)
         out.materials.push_back(materialFit(params_, m, out.naturalStd[m]));

@@ -36,6 +36,14 @@ std::string notConvergedBecause(const FitResult& result) {
     return fmt::format("{} round{} spent and the last still moved", rounds, rounds == 1 ? "" : "s");
 }
 
+// How a converged fit ended, after "converged".
+std::string convergedHow(const FitResult& result) {
+    if (result.stopReason == "precision") return ": precision reached";
+    if (result.stopReason == "noise floor")
+        return " at the images' noise floor: more paths cannot meet --precision";
+    return "";
+}
+
 }  // namespace
 
 void printRound(const FitRound& r, const SceneFitProblem& problem, bool fitExposure) {
@@ -70,19 +78,12 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
                          "ks; held where the start materials match their brightness, or as far "
                          "above as kd + ks <= 1 needs)"
                        : "");
-    fmt::print(
-        "rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
-        result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
-        result.converged
-            ? fmt::format(" (converged{})", result.stopReason == "precision" ? ": precision reached"
-                                            : result.stopReason == "noise floor"
-                                                ? " at the images' noise floor: "
-                                                  "more paths cannot meet "
-                                                  "--precision"
-                                                : "")
-            : fmt::format(" (not converged: {})", notConvergedBecause(result)),
-        result.timeSeconds, problem.views[0].depthNote,
-        (std::filesystem::path(dir) / "fit.json").string());
+    fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
+               result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
+               result.converged ? fmt::format(" (converged{})", convergedHow(result))
+                                : fmt::format(" (not converged: {})", notConvergedBecause(result)),
+               result.timeSeconds, problem.views[0].depthNote,
+               (std::filesystem::path(dir) / "fit.json").string());
 }
 
 }  // namespace phongfit
