@@ -103,10 +103,16 @@ Minimized minimizeLeastSquares(Objective<P>& objective, ParameterState<P>& param
     std::vector<double*> blocks;
     if (buildProblem(problem, params, objective.pixels().slotSeen, blockSlots, blocks) == 0)
         return {};
-    const auto sums = [&objective, &weights, cross](const double* y, double& squares,
-                                                    Eigen::VectorXd* gradient,
-                                                    Eigen::MatrixXd* gramian) {
+    // Ceres sees a cost |r|^2 / 2 >= 0, and the sum of cross products goes below 0 wherever the
+    // recordings' noise outweighs the model's error: a constant offset, the noise's scale at the
+    // start, keeps it positive without moving its minimum.
+    const double offset =
+        cross ? objective.crossScale(params.naturalCoordinates().data(), weights) : 0.0;
+    const auto sums = [&objective, &weights, cross, offset](const double* y, double& squares,
+                                                            Eigen::VectorXd* gradient,
+                                                            Eigen::MatrixXd* gramian) {
         objective.leastSquaresSums(y, weights, cross, squares, gradient, gramian);
+        squares += offset;
     };
     problem.AddResidualBlock(new LeastSquaresResidual<P>(sums, blockSlots, params.held(),
                                                          freeIndices(params, blockSlots)),

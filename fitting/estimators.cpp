@@ -1,5 +1,8 @@
 // The two estimators of RoundSolver (docs/design/fitter.md explains why two sets, cross products
 // and moments).
+#include <Eigen/Eigenvalues>
+#include <limits>
+
 #include "convergence.h"
 #include "round_solver.h"
 #include "standard_errors.h"
@@ -16,6 +19,22 @@ constexpr int kMaxPasses = 8;
 // solution's: near-equal ones (exact data, where both are the least-squares solution) must not
 // flip from one to the other on rounding.
 constexpr double kCrossPreference = 0.5;
+
+// Whether the cross products have a minimum here: their Gauss-Newton matrix is positive definite
+// over the free coordinates. Their sum itself can be below 0 at a well-defined minimum (a Cornell
+// box at 4 paths per pixel, in about one round of three), where pooled least squares would be
+// biased towards 0.
+bool positiveDefinite(const Eigen::MatrixXd& gram, const std::vector<bool>& held) {
+    std::vector<Eigen::Index> free;
+    for (std::size_t i = 0; i < held.size(); ++i)
+        if (!held[i]) free.push_back(Eigen::Index(i));
+    if (free.empty()) return true;
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram(free, free),
+                                                               Eigen::EigenvaluesOnly);
+    const Eigen::VectorXd& d = eigen.eigenvalues();
+    return d.minCoeff() >
+           d.maxCoeff() * double(free.size()) * std::numeric_limits<double>::epsilon();
+}
 
 }  // namespace
 
@@ -43,10 +62,11 @@ Analysis RoundSolver<P>::solveLeastSquares(RoundOutcome& out) {
 
 // First the cross-product least squares, sum over pixels of r_A . r_B: unbiased, and a
 // minimisation, which from the scan's basin finds the minimum where the moment equations can have
-// spurious roots. Where that sum goes negative (noise outweighs the model's error) pooled least
-// squares is the anchor instead. Then the moment equations from there, instruments moved to each
-// solution until it stays put. The moment solution is kept unless it does not settle or is
-// clearly less precise than the anchor (kCrossPreference).
+// spurious roots. Where the sum is not positive (noise outweighs the model's error) and has no
+// minimum either (a thin crescent of partly covered pixels), pooled least squares is the anchor
+// instead. Then the moment equations from there, instruments moved to each solution until it
+// stays put. The moment solution is kept unless it does not settle or is clearly less precise
+// than the anchor (kCrossPreference).
 template <int P>
 Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     const std::vector<double> before = params_.internal();
@@ -54,14 +74,15 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     const std::vector<double> y = params_.naturalCoordinates();
     double crossSum = 0;
     objective_.leastSquaresSums(y.data(), leastSquaresWeights_, true, crossSum, nullptr, nullptr);
-    const bool cross = crossSum > 0;
+    Analysis analysis = analyse();
+    const bool cross = crossSum > 0 || positiveDefinite(analysis.crossGram, params_.heldFlags());
     if (!cross) {
         params_.setInternal(before);
         account(out,
                 minimizeLeastSquares(objective_, params_, leastSquaresWeights_, false, options_));
+        analysis = analyse();
     }
     const std::vector<double> anchorX = params_.internal();
-    Analysis analysis = analyse();
     const std::vector<std::vector<double>> anchorStd =
         cross ? naturalStd(analysis.crossGram, analysis.crossScores)
               : naturalStd(analysis.gram, analysis.leastSquaresScores);

@@ -155,6 +155,20 @@ void Objective<P>::leastSquaresSums(const double* y, const std::vector<double>& 
     *gramian = std::move(sums.gramian);
 }
 
+template <int P>
+double Objective<P>::crossScale(const double* y, const std::vector<double>& weights) {
+    const NormalSums zero{0.0, Eigen::VectorXd(), Eigen::MatrixXd()};
+    return sumPixels(prep_.seeingMaterial, zero,
+                     [&](std::size_t i, NormalSums& sum, Scratch& scratch) {
+                         const UsedPixel& u = prep_.pixels[i];
+                         const double w = weights.empty() ? 1.0 : weights[i];
+                         sum.squares += 0.5 * w *
+                                        (residual(0, u, y, scratch, false).squaredNorm() +
+                                         residual(1, u, y, scratch, false).squaredNorm());
+                     })
+        .squares;
+}
+
 template class Objective<kRgbBlock>;
 template class Objective<kGreyBlock>;
 

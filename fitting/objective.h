@@ -93,6 +93,10 @@ public:
     void leastSquaresSums(const double* y, const std::vector<double>& weights, bool cross,
                           double& squares, Eigen::VectorXd* gradient, Eigen::MatrixXd* gramian);
 
+    // Over the same pixels, the sum of w (|r_A|^2 + |r_B|^2) / 2: at least |w r_A . r_B| pixel by
+    // pixel, the scale of the recordings' noise against which the cross products are minimised.
+    double crossScale(const double* y, const std::vector<double>& weights);
+
 private:
     int blocks_;
     ExposureBlock exposure_;
