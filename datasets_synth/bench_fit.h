@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "fitter.h"
 #include "math.h"
 #include "shard.h"
 
@@ -25,8 +26,8 @@ struct BenchFitOptions {
     // toleranceFloor (absolute), n within nTolerance (relative).
     double kdKsTolerance = 0.02, toleranceFloor = 0.003, nTolerance = 0.05;
     int rounds = 6;
-    int adaptiveSpp = 0;   // SceneRecording::adaptiveSpp (fit --adaptive-spp)
-    double precision = 0;  // FitOptions::precision (fit --precision)
+    int adaptiveSpp = 0;                   // SceneRecording::adaptiveSpp (fit --adaptive-spp)
+    double precision = kDefaultPrecision;  // FitOptions::precision (fit --precision)
     // A fit fails when it throws, returns a non-finite value, or misses a parameter by more than
     // this relative error.
     double failThreshold = 0.5;

@@ -71,6 +71,7 @@ void runDemo(const DemoArgs& args) {
         (*in.kd)[0], (*in.ks)[0], *in.n, recording.spp, recording.directSpp);
     const SceneFitProblem problem = loadSceneFit(in);
     FitOptions options;
+    options.precision = kDefaultPrecision;
     options.threads = args.threads;
     options.stopRequested = interruptRequested;
     if (!args.quiet) options.onRound = [&](const FitRound& r) { printRound(r, problem, false); };

@@ -34,7 +34,7 @@ struct FitCli {
     std::vector<std::string> views, materials, defines;
     std::string kd, ks;
     std::optional<double> n;
-    double timeBudget = 0, precision = 0;
+    double timeBudget = 0, precision = kDefaultPrecision;
     int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
     bool fitExposure = false, ignoreNonFinite = false;
     std::uint64_t seed = 0;

@@ -74,7 +74,13 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
         // Two sets of 4 paths per pixel.
         EXPECT_EQ(round["paths"].get<std::size_t>(), 2u * 4 * kSize * kSize);
     }
-    EXPECT_EQ(report["stop_reason"], report["converged"].get<bool>() ? "converged" : "rounds");
+    // At the default --precision a converged fit met it or the images' noise floor.
+    const std::string stop = report["stop_reason"];
+    if (report["converged"].get<bool>())
+        EXPECT_TRUE(stop == "precision" || stop == "noise floor") << stop;
+    else
+        EXPECT_TRUE(stop == "rounds" || stop == "precision not met" || stop == "unresolved")
+            << stop;
     EXPECT_FALSE(report.contains("exposure")) << "only with --fit-exposure";
     EXPECT_EQ(report["views"][0]["max_depth"], 2);
     EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1)
