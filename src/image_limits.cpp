@@ -232,10 +232,13 @@ void requireTiffWithinLimits(const std::string& path, const char* what, std::int
                                     ((std::clamp<std::int64_t>(bits, 1, 64) + 7) / 8);
     requireDeclaredPixels(path, width, height, size,
                           std::max<std::int64_t>(1, kMaxTiffBytesPerByte / pixelBytes));
+    // OpenCV sizes a strip's buffer by RowsPerStrip as declared: only 0 and 2^32 - 1 mean the
+    // whole image, not values past the image's length (png_fuzz found a 65532 x 3 image with
+    // 14851 rows per strip, for which OpenCV asked for 3.9 GB).
     const bool tiled = tileWidth > 0 && tileHeight > 0;
-    const double blockPixels =
-        tiled ? double(tileWidth) * double(tileHeight)
-              : double(width) * double(rowsPerStrip < 0 ? height : std::min(rowsPerStrip, height));
+    const bool wholeImage = rowsPerStrip <= 0 || rowsPerStrip == 0xFFFFFFFF;
+    const double blockPixels = tiled ? double(tileWidth) * double(tileHeight)
+                                     : double(width) * double(wholeImage ? height : rowsPerStrip);
     const double bytes = blockPixels * double(std::max<std::int64_t>(samples, 1)) *
                          double((std::max<std::int64_t>(bits, 1) + 7) / 8);
     requireBlockBytes(path, tiled ? "tile" : "strip", std::int64_t(std::min(bytes, 0x1p62)));

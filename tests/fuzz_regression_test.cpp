@@ -129,6 +129,14 @@ TEST(PngFuzz, TiffDirectoryOffsetNearTwoToThe64IsRefused) {
     EXPECT_NE(e.find("a TIFF's first directory lies within the file"), std::string::npos) << e;
 }
 
+// png_fuzz (out of memory: 3.9 GB asked for): a 65532 x 3 LZW TIFF declaring 14851 rows per
+// strip, for which OpenCV allocates a strip of 14851 rows at 4 bytes a pixel.
+TEST(PngFuzz, TiffStripLongerThanItsImageIsRefusedBeforeOpenCvAllocates) {
+    const std::string path = fuzzInput("tiff_rows_per_strip.tif");
+    const std::string e = errorOf([&] { readImage(path); });
+    EXPECT_NE(e.find("one strip decodes to"), std::string::npos) << e;
+}
+
 // exr_fuzz, an hour's run (timeouts under ASan; 1.2 to 1.7 GB asked for in release): a channel
 // list whose entries run past its declared size. InputFile reads a channel list by its entries,
 // OpenEXRCore by its size, so the two read the rest of the header differently (a data window of
