@@ -74,15 +74,22 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     const std::vector<double> y = params_.naturalCoordinates();
     double crossSum = 0;
     objective_.leastSquaresSums(y.data(), leastSquaresWeights_, true, crossSum, nullptr, nullptr);
-    Analysis analysis = analyse();
-    const bool cross = crossSum > 0 || positiveDefinite(analysis.crossGram, params_.heldFlags());
+    bool cross = crossSum > 0;
+    if (!cross) {
+        // The sum alone does not tell; whether the cross products have a minimum here does.
+        Eigen::VectorXd gradient;
+        Eigen::MatrixXd crossGram;
+        objective_.leastSquaresSums(y.data(), leastSquaresWeights_, true, crossSum, &gradient,
+                                    &crossGram);
+        cross = positiveDefinite(crossGram, params_.heldFlags());
+    }
     if (!cross) {
         params_.setInternal(before);
         account(out,
                 minimizeLeastSquares(objective_, params_, leastSquaresWeights_, false, options_));
-        analysis = analyse();
     }
     const std::vector<double> anchorX = params_.internal();
+    Analysis analysis = analyse();
     const std::vector<std::vector<double>> anchorStd =
         cross ? naturalStd(analysis.crossGram, analysis.crossScores)
               : naturalStd(analysis.gram, analysis.leastSquaresScores);
