@@ -116,6 +116,21 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
                 l.area = kPi * m.col(0).cross(m.col(1)).norm();
                 break;
             }
+            case ShapeDesc::Type::Rectangle: {
+                // Sampled as the parallelogram its two triangles make (corners 0, 1, 3): no search,
+                // and a stratified point stays stratified.
+                l.type = Light::Type::Parallelogram;
+                const TriangleMesh& m = shape.mesh;
+                const Vec3d v0 = m.positions[0].cast<double>();
+                const Vec3d e1 = m.positions[1].cast<double>() - v0,
+                            e2 = m.positions[3].cast<double>() - v0;
+                const Vec3d front = (triangleVertex(m, 0, 1) - triangleVertex(m, 0, 0))
+                                        .cross(triangleVertex(m, 0, 2) - triangleVertex(m, 0, 0));
+                const Vec3d n = e1.cross(e2);
+                l.area = n.norm();
+                l.triangles.push_back({v0, e1, e2, (n.dot(front) < 0 ? -n : n).normalized()});
+                break;
+            }
             default: {
                 l.type = Light::Type::Mesh;
                 const TriangleMesh& m = shape.mesh;
@@ -176,6 +191,10 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
         const Vec2d d = squareToUniformDisk(u.x(), u.y());
         q = shape.toWorld * Vec3d(d.x(), d.y(), 0);
         n = (shape.toWorld.linear().inverse().transpose() * Vec3d::UnitZ()).normalized();
+    } else if (l.type == Light::Type::Parallelogram) {
+        const auto& [v0, e1, e2, normal] = l.triangles[0];
+        q = v0 + u.x() * e1 + u.y() * e2;
+        n = normal;
     } else {
         // u.x picks the triangle and is then reused within it, so that a stratified (u.x, u.y)
         // stays stratified over the whole mesh (a rectangle's two triangles share the square).

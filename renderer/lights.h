@@ -48,12 +48,13 @@ public:
 
 private:
     struct Light {
-        enum class Type { Point, Directional, Environment, Mesh, Sphere, Disk };
+        enum class Type { Point, Directional, Environment, Mesh, Parallelogram, Sphere, Disk };
         Type type = Type::Point;
         Color3 value = Color3::Zero();  // intensity, irradiance or radiance
         Vec3d position = Vec3d::Zero(), direction = Vec3d::UnitZ();
         int shape = -1;
         // Mesh: per triangle, cumulative area, a vertex, two edges and the unit front normal.
+        // Parallelogram (a rectangle): one entry, a corner and the two edges from it.
         std::vector<double> triangleCdf;
         std::vector<std::array<Vec3d, 4>> triangles;
         double area = 0;

@@ -66,6 +66,11 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
         const Vec3d wo = frame.toLocal(-ray.dir);
         if (!(wo.z() > 0) || !(hit->ng.dot(-ray.dir) > 0)) return;  // one-sided materials
         const std::uint32_t dim = kFirstDimension + std::uint32_t(depth - 1) * dimensionsPerBounce_;
+        // At the last vertex that can reflect, on a diffuse surface, light sampling alone covers
+        // every emitter and does best: the BRDF-sampled ray, which could only find emission, is not
+        // traced (docs/design/sampling.md).
+        const bool lightSamplingOnly = maxDepth >= 0 && depth + 1 >= maxDepth && settings_.mis &&
+                                       slot < 0 && !(m.ks > 0).any();
 
         // Next-event estimation on every light.
         for (int l = 0; l < lights_.size(); ++l) {
@@ -75,7 +80,8 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
             const Vec3d wi = frame.toLocal(ls->wi);
             if (!(wi.z() > 0) || !(hit->ng.dot(ls->wi) > 0)) continue;
             Color3 c = constant * ls->radiance * (wi.z() / ls->pdf);
-            if (!ls->delta) c *= detail::powerHeuristic(ls->pdf, sampler.pdf(m, wo, wi));
+            if (!ls->delta && !lightSamplingOnly)
+                c *= detail::powerHeuristic(ls->pdf, sampler.pdf(m, wo, wi));
             if (slot < 0) c *= phongEval(m, wi, wo);
             if (!(c > 0).any()) continue;
             // Stop short of the light's own surface (relative margin: float intersection error).
@@ -93,6 +99,8 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
                 sink.add(c, std::span<const PathVertex>(prefix, prefixSize + 1));
             }
         }
+
+        if (lightSamplingOnly) return;
 
         // Continue the path by sampling the BRDF.
         const auto s = sampler.sample(m, wo, rng.get1D(sample, dim), rng.get2D(sample, dim + 1));

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "chi_square.h"
+#include "scene_shapes.h"
 
 namespace phongfit {
 namespace {
@@ -136,6 +137,67 @@ TEST(MeshLight, StratifiedPointsAreUniformByArea) {
     EXPECT_GE(r.pValue, 0.01) << "chi2 = " << r.statistic;
     // The triangle is picked by u.x alone: its share of a stratified grid is exact to a column.
     EXPECT_NEAR(observed.back(), expected.back(), kGrid);
+}
+
+// A rectangle light is sampled as the parallelogram its toWorld makes of [-1, 1]^2 (here sheared,
+// and mirrored, which turns its front): a stratified 64 x 64 grid of the unit square puts exactly
+// as many points in each of 8 x 8 equal cells of the parallelogram; the density is the inverse area
+// converted to solid angle, pdfArea gives it again where the direction meets the light, and light
+// leaves the side that emits.
+TEST(RectangleLight, StratifiedPointsFillItsParallelogramEvenly) {
+    for (const double mirror : {1.0, -1.0}) {
+        Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
+        toWorld.linear() << 0.8, 0.3, 0, 0, 0.5 * mirror, 0, 0, 0, 1;
+        toWorld.translation() = Vec3d(0.2, -0.1, 2);
+        Scene scene;
+        scene.bsdfs.push_back(BsdfDesc{"black", "diffuse", PhongMaterial{}, {}});
+        ShapeDesc light;
+        light.type = ShapeDesc::Type::Rectangle;
+        light.mesh = scene_xml::transformed(scene_xml::unitRectangle(), toWorld);
+        light.bsdf = 0;
+        light.areaRadiance = Color3::Ones();
+        scene.shapes.push_back(light);
+        const EmbreeScene geometry(scene);
+        const LightSet lights(scene, geometry);
+        const double area = 4 * 0.8 * 0.5;
+        const Eigen::Affine3d toLocal = toWorld.inverse();
+        // Seen from below (z = 0) or above (z = 4): the light emits towards one of them.
+        for (const double z : {0.0, 4.0}) {
+            const Vec3d p(0.1, 0.2, z);
+            constexpr int kGrid = 64, kCells = 8;
+            std::vector<int> count(kCells * kCells, 0);
+            int sampled = 0;
+            for (int i = 0; i < kGrid; ++i)
+                for (int j = 0; j < kGrid; ++j) {
+                    const Vec2d u((i + 0.5) / kGrid, (j + 0.5) / kGrid);
+                    const std::optional<LightSample> s = lights.sample(0, p, u);
+                    const std::optional<Hit> hit =
+                        geometry.intersect(Ray{p, (Vec3d(0.2, -0.1, 2) - p).normalized()});
+                    ASSERT_TRUE(hit);
+                    const bool front = lights.emitted(*hit, (hit->p - p).normalized())[0] > 0;
+                    ASSERT_EQ(bool(s), front) << "z " << z << ", mirror " << mirror;
+                    if (!s) continue;
+                    ++sampled;
+                    const Vec3d q = p + s->distance * s->wi;
+                    const Vec3d local = toLocal * q;
+                    ASSERT_NEAR(local.z(), 0, 1e-6);
+                    ASSERT_LE(std::abs(local.x()), 1 + 1e-6);
+                    ASSERT_LE(std::abs(local.y()), 1 + 1e-6);
+                    ++count[std::min(int((local.x() + 1) / 2 * kCells), kCells - 1) * kCells +
+                            std::min(int((local.y() + 1) / 2 * kCells), kCells - 1)];
+                    const double cosLight = std::abs(s->wi.z());
+                    // The light's corners are the mesh's float vertices.
+                    ASSERT_NEAR(s->pdf, s->distance * s->distance / (cosLight * area),
+                                1e-6 * s->pdf);
+                    const std::optional<Hit> at = geometry.intersect(Ray{p, s->wi});
+                    ASSERT_TRUE(at);
+                    ASSERT_NEAR(lights.pdfArea(0, p, *at), s->pdf, 1e-5 * s->pdf);
+                }
+            if (sampled == 0) continue;
+            EXPECT_EQ(sampled, kGrid * kGrid);
+            for (const int c : count) EXPECT_EQ(c, kGrid * kGrid / (kCells * kCells));
+        }
+    }
 }
 
 }  // namespace

@@ -1,11 +1,14 @@
 // Renders checked against closed forms: a Phong sphere under a point light (direct light, every
-// interior pixel box-filtered analytically), and the furnace (a closed emitting diffuse enclosure).
+// interior pixel box-filtered analytically), the furnace (a closed emitting diffuse enclosure), and
+// a floor under a rectangle light.
 #include "renderer.h"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+
+#include "scene_parser.h"
 
 namespace phongfit {
 namespace {
@@ -229,6 +232,44 @@ TEST(Determinism, SameSeedSameImageWhateverTheThreadCount) {
         options.seed = 8;
         EXPECT_NE(one.rgb, renderer.render(options).rgb);
     }
+}
+
+// At the last vertex that can reflect (here the only one: depth 2), a diffuse surface is lit by
+// light sampling alone: one camera ray and one shadow ray a sample, no BRDF-sampled ray, and the
+// closed-form irradiance under a rectangle light parallel to the floor, centred above the point
+// seen: four times the form factor to a parallel rectangle with a corner overhead, E = 2 L (A /
+// sqrt(1 + A^2) atan(B / sqrt(1 + A^2)) + (A <-> B)), A and B a quarter's sides over the height.
+TEST(LastVertex, DiffuseSurfaceIsLitByLightSamplingAloneAndExactly) {
+    const double a = 0.5, b = 0.3, h = 1, radiance = 2, kd = 0.6;
+    const Scene scene = parseScene(fmt::format(R"(<scene version="0.6.0">
+        <integrator type="path"><integer name="maxDepth" value="2"/></integrator>
+        <sensor type="perspective"><float name="fov" value="1"/>
+            <transform name="toWorld"><lookat origin="0, 0, 0.5" target="0, 0, 0" up="0, 1, 0"/></transform>
+            <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+        </sensor>
+        <bsdf type="diffuse" id="floor"><rgb name="reflectance" value="{}"/></bsdf>
+        <shape type="rectangle"><transform name="toWorld"><scale value="10"/></transform><ref id="floor"/></shape>
+        <shape type="rectangle">
+            <transform name="toWorld"><scale x="{}" y="{}"/><rotate x="1" angle="180"/><translate z="{}"/></transform>
+            <emitter type="area"><rgb name="radiance" value="{}"/></emitter>
+        </shape>
+    </scene>)",
+                                               kd, a, b, h, radiance),
+                                   "last_vertex.xml");
+    RenderOptions options;
+    options.spp = 256;
+    options.quiet = true;
+    const RenderResult r = Renderer(scene).render(options);
+    EXPECT_EQ(r.stats.rays, 2 * r.stats.samples);
+    const auto quarter = [](double x, double y) {
+        const double sx = std::sqrt(1 + x * x), sy = std::sqrt(1 + y * y);
+        return x / sx * std::atan(y / sx) + y / sy * std::atan(x / sy);
+    };
+    const double irradiance = 2 * radiance * quarter(a / h, b / h);
+    const double expected = kd / kPi * irradiance;
+    double mean = 0;
+    for (const float v : r.rgb) mean += v / double(r.rgb.size());
+    EXPECT_NEAR(mean, expected, 1e-3 * expected);
 }
 
 }  // namespace
