@@ -15,6 +15,7 @@
 #include "path_importance.h"
 #include "precision_target.h"
 #include "round_paths.h"
+#include "round_scatter.h"
 #include "round_solver.h"
 
 namespace phongfit {
@@ -73,6 +74,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     Estimate theta{start, 1.0};
     std::vector<std::vector<float>> importance;  // per view, for the next round's recording
     double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
+    bool exact = false;  // the recorder returned one exact set: every round is the same problem
     for (int round = 0; round < maxRounds; ++round) {
         result.stopReason = "rounds";
         if (round > 0 && options.timeBudget > 0 &&
@@ -83,6 +85,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const auto roundBegin = std::chrono::steady_clock::now();
         const RoundSets sets = recordAll(theta.materials, round, importance, pathFactor);
         const double recordSeconds = secondsSince(roundBegin);
+        exact = sets.first == sets.second;
         for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
             if (paths->size() != observations.size())
                 throw Error(fmt::format("the recorder returned {} path sets for {} views",
@@ -181,6 +184,17 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 }
             importance =
                 pathImportance<P>(observations, *sets.first, *sets.second, natural, std, threads);
+        }
+    }
+    if (!exact) {
+        widenToRoundScatter(result);
+        // A converged estimate whose rounds scatter by as much as a parameter is not resolved.
+        const bool resolved =
+            std::all_of(result.materials.begin(), result.materials.end(),
+                        [](const MaterialFit& m) { return unresolvedParameters(m).empty(); });
+        if (result.converged && !resolved) {
+            result.converged = false;
+            result.stopReason = "unresolved";
         }
     }
     result.timeSeconds = secondsSince(begin);

@@ -14,7 +14,7 @@
 #   run under ASan in the smaller Cornell round trip, the demo and
 #   RoundTrip.DirectLightLeavesTheExposureUnconstrained;
 # - statistical checks that repeat code paths other tests run under ASan:
-#   RoundTrip.AreaLightSharpLobeIsFoundWithAdaptivePaths and ...SubPixelHighlightKeepsItsExponentFree
+#   RoundTrip.AreaLightSharpLobeIsFoundWithAdaptivePaths and RoundTrip/SubPixelHighlight.*
 #   (area light, adaptive paths and holding: the small Cornell box and the exponent grid),
 #   Bench.RecoveryMatrixSubsetPassesAtDefaults (bench fit: Bench.FitRecoversTheSmallDataset and the
 #   sharded bench), DiligentBall.ExponentIsStableBetweenOddAndEvenLights (the capture fit: the
@@ -43,7 +43,7 @@ export UBSAN_OPTIONS="log_path=$reports/ubsan:print_stacktrace=1:halt_on_error=1
 
 status=0
 slow='RoundTrip.CornellBoxWithUnknownExposure|RoundTrip.CornellBoxFromAStartWithNOffBy100x'
-slow+='|RoundTrip.AreaLightSharpLobeIsFoundWithAdaptivePaths|RoundTrip.SubPixelHighlightKeepsItsExponentFree'
+slow+='|RoundTrip.AreaLightSharpLobeIsFoundWithAdaptivePaths|RoundTrip/SubPixelHighlight\.'
 slow+='|Bench.RecoveryMatrixSubsetPassesAtDefaults|DiligentBall.ExponentIsStableBetweenOddAndEvenLights'
 exclude=${SANITIZE_EXCLUDE-$slow}
 (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900 -LE slurm \

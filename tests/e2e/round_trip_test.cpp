@@ -52,9 +52,10 @@ protected:
 
     // Fits `views` (scene:image) with extra arguments; returns fit.json.
     nlohmann::json fit(const std::vector<std::string>& views, std::vector<std::string> extra,
-                       const std::string& name) {
-        std::vector<std::string> args = {PHONGFIT_EXE, "fit",     "--material", "sphere", "-o",
-                                         path(name),   "--quiet", "--seed",     "3"};
+                       const std::string& name, int seed = 3) {
+        std::vector<std::string> args = {PHONGFIT_EXE, "fit",    "--material",
+                                         "sphere",     "-o",     path(name),
+                                         "--quiet",    "--seed", std::to_string(seed)};
         for (const std::string& v : views) args.insert(args.end(), {"--view", v});
         args.insert(args.end(), extra.begin(), extra.end());
         const auto r = test::runProcess(args);
@@ -157,14 +158,18 @@ TEST_F(RoundTrip, SmallCornellBoxStaysWithinItsStandardErrors) {
 // n = 50000 under a point light at 128 x 128, grey: the highlight is smaller than a pixel, and ks
 // and log n correlate to 0.98. The lobe test must not count that trade-off against the lobe (with n
 // free, ks was under 2 standard errors and n was held at the start, 100, biasing ks), and round
-// 0, recorded at that far start, must not pass for converged on its large standard errors.
-TEST_F(RoundTrip, SubPixelHighlightKeepsItsExponentFree) {
+// 0, recorded at that far start, must not pass for converged on its large standard errors. Two
+// recording seeds: with seed 1 the per-pixel standard errors alone put ks 57 of them off
+// (0.2539 +- 0.00007); the rounds' scatter (round_scatter.h) says 0.0015.
+class SubPixelHighlight : public RoundTrip, public ::testing::WithParamInterface<int> {};
+
+TEST_P(SubPixelHighlight, KeepsItsExponentFree) {
     const std::map<std::string, std::string> truth = {
         {"kd", "0.6"}, {"ks", "0.25"}, {"n", "50000"}};
     const std::string image = render(kPoint, truth, "sharp", 256);
-    const auto report =
-        fit({kPoint + ":" + image},
-            {"--grey", "--kd", "0.25", "--ks", "0.25", "--n", "100", "--spp", "16"}, "fit");
+    const auto report = fit({kPoint + ":" + image},
+                            {"--grey", "--kd", "0.25", "--ks", "0.25", "--n", "100", "--spp", "16"},
+                            "fit", GetParam());
     const auto& m = report["materials"]["sphere"];
     EXPECT_TRUE(m["unconstrained"].empty()) << m["unconstrained"].dump();
     EXPECT_GE(report["rounds"].size(), 2u);
@@ -182,6 +187,8 @@ TEST_F(RoundTrip, SubPixelHighlightKeepsItsExponentFree) {
         EXPECT_FALSE(report["converged"].get<bool>());
     }
 }
+
+INSTANTIATE_TEST_SUITE_P(RoundTrip, SubPixelHighlight, ::testing::Values(3, 1));
 
 // A backlit sphere (stiff-case study sample 35): at 4 paths round 0, recorded at the start
 // (n = 100 for a true 10.7), sees too little of the lobe and holds n there; held for good, ks

@@ -1,0 +1,68 @@
+// Standard errors are raised to the scatter of the last rounds' estimates, computed by hand here.
+#include "round_scatter.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace phongfit {
+namespace {
+
+FitRound roundAt(double kd, double ks, double n) {
+    FitRound r;
+    MaterialFit m;
+    m.kd = Color3::Constant(kd);
+    m.ks = Color3::Constant(ks);
+    m.n = n;
+    r.materials.push_back(m);
+    return r;
+}
+
+// Six rounds: 0 and 1 travel (ignored); 2 to 5 alternate ks 0.25, 0.254 and n 1000, 1100, with
+// kd steady. Successive differences 0.004 and log(1.1) three times: scatter 0.004 / sqrt(2) and
+// n log(1.1) / sqrt(2). The sandwich's smaller errors are raised, a larger one kept, a held
+// parameter (0) left alone.
+TEST(RoundScatter, RaisesStandardErrorsToTheLastRoundsScatter) {
+    FitResult result;
+    result.rounds = {roundAt(0.1, 0.9, 5),     roundAt(0.5, 0.3, 800),
+                     roundAt(0.6, 0.25, 1000), roundAt(0.6, 0.254, 1100),
+                     roundAt(0.6, 0.25, 1000), roundAt(0.6, 0.254, 1100)};
+    MaterialFit last = result.rounds.back().materials[0];
+    last.kdStd = Color3(1e-4, 1e-4, 0);
+    last.ksStd = Color3(1e-5, 0.01, 1e-5);
+    last.nStd = 3;
+    result.materials = {last};
+    widenToRoundScatter(result);
+    const MaterialFit& m = result.materials[0];
+    EXPECT_EQ(m.kdStd[0], 1e-4);
+    EXPECT_EQ(m.kdStd[2], 0);
+    EXPECT_NEAR(m.ksStd[0], 0.004 / std::sqrt(2.0), 1e-12);
+    EXPECT_EQ(m.ksStd[1], 0.01);
+    EXPECT_NEAR(m.nStd, 1100 * std::log(1.1) / std::sqrt(2.0), 1e-9);
+}
+
+// The scatter needs two estimates from round 2 on, and only the last kScatterRounds count.
+TEST(RoundScatter, NeedsTwoSettledRoundsAndLooksAtTheLastFew) {
+    FitResult result;
+    result.rounds = {roundAt(0.1, 0.9, 5), roundAt(0.5, 0.3, 800), roundAt(0.6, 0.25, 1000)};
+    MaterialFit last = result.rounds.back().materials[0];
+    last.kdStd = last.ksStd = Color3::Constant(1e-5);
+    last.nStd = 1;
+    result.materials = {last};
+    widenToRoundScatter(result);
+    EXPECT_EQ(result.materials[0].ksStd[0], 1e-5);
+    EXPECT_EQ(result.materials[0].nStd, 1);
+
+    // Round 2 far off, then kScatterRounds steady rounds: only the steady ones count.
+    result.rounds.back() = roundAt(0.9, 0.05, 10);
+    for (int i = 0; i < kScatterRounds; ++i) result.rounds.push_back(roundAt(0.6, 0.25, 1000));
+    result.materials = {result.rounds.back().materials[0]};
+    result.materials[0].ksStd = Color3::Constant(1e-5);
+    result.materials[0].nStd = 1;
+    widenToRoundScatter(result);
+    EXPECT_EQ(result.materials[0].ksStd[0], 1e-5);
+    EXPECT_EQ(result.materials[0].nStd, 1);
+}
+
+}  // namespace
+}  // namespace phongfit
