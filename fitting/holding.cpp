@@ -22,7 +22,8 @@ bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
 }
 
 template <int P>
-bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, double significance) {
+bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, double significance,
+                         const std::vector<std::vector<double>>* ksStdFloor) {
     using L = BlockLayout<P>;
     std::vector<HeldParams> exponentsHeld = params.held();
     for (int s = 0; s < params.materialCount(); ++s) exponentsHeld[s].n = true;
@@ -42,7 +43,8 @@ bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, do
         for (int g = 0; g < L::kGroups; ++g) {
             if (held.ks[g]) continue;
             ks.push_back(y[L::specular(g)]);
-            ksStd.push_back(stdNatural[s][L::specular(g)]);
+            const double floor = ksStdFloor ? (*ksStdFloor)[std::size_t(s)][std::size_t(g)] : 0;
+            ksStd.push_back(std::max(stdNatural[s][L::specular(g)], floor));
         }
         if (!lobeDetected(ks, ksStd, significance)) indices.push_back(s * P + L::kLogN);
     }
@@ -53,7 +55,9 @@ template bool holdUnconstrained<kRgbBlock>(const Analysis&, const UsedPixels&,
                                            ParameterState<kRgbBlock>&);
 template bool holdUnconstrained<kGreyBlock>(const Analysis&, const UsedPixels&,
                                             ParameterState<kGreyBlock>&);
-template bool holdUnseenExponents<kRgbBlock>(const Analysis&, ParameterState<kRgbBlock>&, double);
-template bool holdUnseenExponents<kGreyBlock>(const Analysis&, ParameterState<kGreyBlock>&, double);
+template bool holdUnseenExponents<kRgbBlock>(const Analysis&, ParameterState<kRgbBlock>&, double,
+                                             const std::vector<std::vector<double>>*);
+template bool holdUnseenExponents<kGreyBlock>(const Analysis&, ParameterState<kGreyBlock>&, double,
+                                              const std::vector<std::vector<double>>*);
 
 }  // namespace phongfit

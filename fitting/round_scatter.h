@@ -8,12 +8,22 @@
 
 namespace phongfit {
 
-// Raises each free parameter's standard error in `result.materials` to the scatter of the last
-// kScatterRounds estimates of rounds from the third on (rounds 0 and 1 are still travelling from
-// the start), sqrt(mean of squared successive differences / 2), when there are at least two. n's
-// scatter is taken in log n. Held and unconstrained parameters (standard error 0) are left alone.
-void widenToRoundScatter(FitResult& result);
-
 inline constexpr int kScatterRounds = 4;
+
+// Per material: the scatter of kd and ks per channel and of log n over the last kScatterRounds
+// estimates of rounds from the third on (rounds 0 and 1 are still travelling from the start),
+// sqrt(mean of squared successive differences / 2); the estimates are `rounds`' and then, if given,
+// `latest`'s. Empty when there are fewer than two.
+struct MaterialScatter {
+    Color3 kd = Color3::Zero(), ks = Color3::Zero();
+    double logN = 0;
+};
+std::vector<MaterialScatter> roundScatter(const std::vector<FitRound>& rounds,
+                                          const std::vector<MaterialFit>* latest = nullptr);
+
+// Raises each free parameter's standard error in `result.materials` to roundScatter of its
+// rounds (n: n times the scatter of log n). Held and unconstrained parameters (standard error 0)
+// are left alone.
+void widenToRoundScatter(FitResult& result);
 
 }  // namespace phongfit

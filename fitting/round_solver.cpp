@@ -40,8 +40,9 @@ RoundOutcome RoundSolver<P>::solve(const Estimate& theta) {
 }
 
 template <int P>
-bool RoundSolver<P>::confirmLobes(RoundOutcome& out) {
-    if (!holdUnseenExponents(analysis_, params_, kLobeConfirmation)) return false;
+bool RoundSolver<P>::confirmLobes(RoundOutcome& out,
+                                  const std::vector<std::vector<double>>* ksStdFloor) {
+    if (!holdUnseenExponents(analysis_, params_, kLobeConfirmation, ksStdFloor)) return false;
     solveHolding(out);
     return true;
 }

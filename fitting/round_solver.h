@@ -29,8 +29,10 @@ public:
     RoundOutcome solve(const Estimate& theta);
 
     // At the rounds' final estimate: holds the exponents whose lobe falls short of
-    // kLobeConfirmation and, if any, solves again into `out`. True if anything was held.
-    bool confirmLobes(RoundOutcome& out);
+    // kLobeConfirmation (ks's standard errors at least `ksStdFloor`, per material and ks group, if
+    // given) and, if any, solves again into `out`. True if anything was held.
+    bool confirmLobes(RoundOutcome& out,
+                      const std::vector<std::vector<double>>* ksStdFloor = nullptr);
 
 private:
     // The estimator's solves from the parameters' present values, holding what the images leave

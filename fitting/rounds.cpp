@@ -51,6 +51,23 @@ std::size_t peakResidentBytes() {
     return std::size_t(usage.ru_maxrss) * 1024;  // kilobytes on Linux
 }
 
+// Per material and ks group (a channel, or the grey one): the rounds' scatter of ks; empty
+// without a scatter.
+template <int P>
+std::vector<std::vector<double>> ksScatterFloor(const std::vector<MaterialScatter>& scatter,
+                                                int materials) {
+    if (scatter.empty()) return {};
+    constexpr int kGroups = BlockLayout<P>::kGroups;
+    std::vector<std::vector<double>> least(static_cast<std::size_t>(materials),
+                                           std::vector<double>(kGroups, 0.0));
+    for (int s = 0; s < materials; ++s)
+        for (int g = 0; g < kGroups; ++g)
+            least[std::size_t(s)][std::size_t(g)] = kGroups == 1
+                                                        ? scatter[std::size_t(s)].ks.maxCoeff()
+                                                        : scatter[std::size_t(s)].ks[g];
+    return least;
+}
+
 }  // namespace
 
 template <int P>
@@ -110,9 +127,15 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const bool settled = withinTolerance<P>(params.naturalBlocks(recorded),
                                                 params.naturalBlocks(solved), noise, options) ||
                              (sets.first == sets.second && out.solverConverged);
-        // The final estimate reports only the lobes its recordings confirm.
-        if ((settled || round + 1 == maxRounds) && !solveOptions.stopRequested())
-            solver.confirmLobes(out);
+        // The final estimate reports only the lobes its recordings confirm, and that stand out of
+        // the rounds' scatter.
+        if ((settled || round + 1 == maxRounds) && !solveOptions.stopRequested()) {
+            const std::vector<std::vector<double>> ksFloor =
+                exact ? std::vector<std::vector<double>>{}
+                      : ksScatterFloor<P>(roundScatter(result.rounds, &out.materials),
+                                          params.materialCount());
+            solver.confirmLobes(out, ksFloor.empty() ? nullptr : &ksFloor);
+        }
 
         FitRound r;
         r.round = round;

@@ -64,5 +64,18 @@ TEST(RoundScatter, NeedsTwoSettledRoundsAndLooksAtTheLastFew) {
     EXPECT_EQ(result.materials[0].nStd, 1);
 }
 
+// The lobe test asks during the last round, before it joins the list: its estimate comes last.
+TEST(RoundScatter, TakesTheRoundUnderWayAsTheLatestEstimate) {
+    const std::vector<FitRound> rounds = {roundAt(0.1, 0.9, 5), roundAt(0.5, 0.3, 800),
+                                          roundAt(0.6, 2e-7, 1000)};
+    EXPECT_TRUE(roundScatter(rounds).empty());
+    const std::vector<MaterialFit> latest = roundAt(0.6, 6e-7, 1000).materials;
+    const std::vector<MaterialScatter> s = roundScatter(rounds, &latest);
+    ASSERT_EQ(s.size(), 1u);
+    EXPECT_NEAR(s[0].ks[1], 4e-7 / std::sqrt(2.0), 1e-18);
+    EXPECT_EQ(s[0].kd[0], 0);
+    EXPECT_EQ(s[0].logN, 0);
+}
+
 }  // namespace
 }  // namespace phongfit
