@@ -32,14 +32,17 @@ struct Strategy {
 };
 
 // Every Phong sampler with and without MIS, on independent samples (named as before the Sobol
-// sampler existed) and on Sobol samples ("sobol/" first); `selected` (names) keeps a subset.
+// samplers existed), on Sobol points ("sobol/" first) and on padded Sobol points ("ldsampler/");
+// `selected` (names) keeps a subset.
 std::vector<Strategy> strategies(const std::vector<std::string>& selected) {
     std::vector<Strategy> all;
     const std::vector<std::string>& names = phongSamplerNames();
-    for (const PixelSamplerType pixel : {PixelSamplerType::Independent, PixelSamplerType::Sobol})
-        for (std::size_t i = 0; i < names.size(); ++i) {
-            const std::string prefix = pixel == PixelSamplerType::Sobol ? "sobol/" : "";
-            const int colour = int(i + (pixel == PixelSamplerType::Sobol ? names.size() : 0));
+    int colour = 0;
+    for (const PixelSamplerType pixel :
+         {PixelSamplerType::Independent, PixelSamplerType::Sobol, PixelSamplerType::Padded})
+        for (std::size_t i = 0; i < names.size(); ++i, ++colour) {
+            const std::string prefix =
+                pixel == PixelSamplerType::Independent ? "" : pixelSamplerName(pixel) + "/";
             all.push_back({prefix + names[i] + "+mis", names[i], true, pixel, colour});
             all.push_back({prefix + names[i], names[i], false, pixel, colour});
         }

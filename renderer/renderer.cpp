@@ -140,12 +140,16 @@ RecordResult Renderer::record(const RecordOptions& options) const {
         for (std::size_t p = 0; p < pixels; ++p) paths[p] += options.extraPaths[p];
     }
 
+    // A Sobol scene records on padded Sobol points: at the few paths a pixel a fit records, each
+    // pair stratified on its own does better (docs/design/sampling.md, "Recordings").
+    PixelSamplerType pixelSampler = options.pixelSampler.value_or(scene_.sensor.pixelSampler);
+    if (pixelSampler == PixelSamplerType::Sobol) pixelSampler = PixelSamplerType::Padded;
+
     // Refuse what would exhaust memory before trying: half the machine's is the budget.
     const double meanPaths =
         std::accumulate(paths.begin(), paths.end(), 0.0) / double(std::max<std::size_t>(pixels, 1));
-    const double bytes = recordingBytes(integrator, camera_, scene_.sensor,
-                                        options.pixelSampler.value_or(scene_.sensor.pixelSampler),
-                                        options.seed, meanPaths);
+    const double bytes =
+        recordingBytes(integrator, camera_, scene_.sensor, pixelSampler, options.seed, meanPaths);
     const double budget = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     if (bytes > budget)
         throw Error(fmt::format(
@@ -156,8 +160,8 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     const int most = *std::max_element(paths.begin(), paths.end());
     PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size());
     RecordResult result;
-    result.stats = traceTiles(
-        tileLoop(integrator, options.pixelSampler, options.seed, options.threads, most), film);
+    result.stats =
+        traceTiles(tileLoop(integrator, pixelSampler, options.seed, options.threads, most), film);
     result.stats.spp = options.spp;
     result.paths = film.assemble(options.spp, int(options.fittedBsdfs.size()));
     return result;

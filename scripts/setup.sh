@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   g++ cmake make pkg-config
   libceres-dev libopencv-dev libopenexr-dev libembree-dev libeigen3-dev libtbb-dev
-  libcli11-dev libfmt-dev nlohmann-json3-dev libpugixml-dev libtinyobjloader-dev
+  libcli11-dev libfmt-dev nlohmann-json3-dev libpugixml-dev libtinyobjloader-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   # scripts/fuzz.sh and scripts/sanitize.sh: libFuzzer and the sanitizer runtimes, and
   # llvm-symbolizer for readable reports.

@@ -1,14 +1,17 @@
-// The numbers a pixel's samples consume, by (sample, dimension): independent (CounterRng) or a
-// padded, Owen-scrambled Sobol sequence (Burley 2020, "Practical Hash-based Owen Scrambling"; as
-// pbrt-v4's PaddedSobolSampler). Both are counter-based: a value is a pure function of (seed,
-// pixel, sample, dimension), so any pixel sample is regenerated on its own, on any thread, and a
-// recorded path can be replayed.
+// The numbers a pixel's samples consume, by (sample, dimension): independent (CounterRng), Sobol
+// (Joe and Kuo's sequence over all dimensions, Owen-scrambled per pixel and dimension by Burley
+// 2020's hash, "Practical Hash-based Owen Scrambling"; Mitsuba's `sobol`) or padded Sobol (2D
+// points independent of each other; Mitsuba's `ldsampler`, pbrt-v4's PaddedSobolSampler). All are
+// counter-based: a value is a pure function of (seed, pixel, sample, dimension), so any pixel
+// sample is regenerated on its own, on any thread, and a recorded path can be replayed.
 //
-// Sobol: every 1D or 2D request draws from the first one or two dimensions of the Sobol sequence
-// (a (0,2)-sequence), its sample index shuffled and its values Owen-scrambled by hashes of (seed,
-// pixel, dimension), so that each request is stratified on its own and requests are independent
-// of each other. The integrator's dimension layout (path_integrator.h) asks for 2D pairs where
-// two numbers warp one point (film position, BRDF direction, light point).
+// Sobol: dimension d of sample i is the sequence's dimension d at index i, scrambled, so a pixel's
+// power-of-two prefixes are nets in all dimensions jointly; beyond kDimensions it pads.
+// Padded: every 1D or 2D request draws from the first one or two dimensions of the sequence (a
+// (0,2)-sequence), its sample index shuffled and its values scrambled by hashes of (seed, pixel,
+// dimension), so that each request is stratified on its own and requests are independent of each
+// other. The integrator's dimension layout (path_integrator.h) asks for 2D pairs where two numbers
+// warp one point (film position, BRDF direction, light point). docs/design/sampling.md.
 #pragma once
 
 #include <array>
@@ -22,7 +25,7 @@
 
 namespace phongfit {
 
-enum class PixelSamplerType { Independent, Sobol };
+enum class PixelSamplerType { Independent, Padded, Sobol };
 
 // Mitsuba's <sampler type> names: independent; sobol, and ldsampler as its alias.
 inline const std::vector<std::string>& pixelSamplerNames() {
@@ -30,10 +33,12 @@ inline const std::vector<std::string>& pixelSamplerNames() {
     return names;
 }
 inline PixelSamplerType pixelSamplerType(std::string_view name) {
-    return name == "independent" ? PixelSamplerType::Independent : PixelSamplerType::Sobol;
+    if (name == "independent") return PixelSamplerType::Independent;
+    return name == "ldsampler" ? PixelSamplerType::Padded : PixelSamplerType::Sobol;
 }
 inline std::string pixelSamplerName(PixelSamplerType type) {
-    return type == PixelSamplerType::Independent ? "independent" : "sobol";
+    if (type == PixelSamplerType::Independent) return "independent";
+    return type == PixelSamplerType::Padded ? "ldsampler" : "sobol";
 }
 
 namespace sobol {
@@ -85,18 +90,37 @@ constexpr std::uint32_t dimension1(std::uint32_t i) {
            kDimension1.byte[2][(i >> 16) & 0xff] ^ kDimension1.byte[3][i >> 24];
 }
 
+// Joe and Kuo's Sobol sequence (new-joe-kuo-6.21201, direction numbers from Boost.Random) in its
+// first kDimensions dimensions, bit-reversed (bit 0 first, as Owen scrambling takes it), as tables
+// of the contribution of each byte of the index: dimension d's table for byte b at
+// [(4 * d + b) * 256].
+constexpr std::uint32_t kDimensions = 256;
+const std::uint32_t* reversedByteTables();
+
+// Point `i` of the dimension whose byte tables start at `t`, bit-reversed.
+inline std::uint32_t reversedSample(std::uint32_t i, const std::uint32_t* t) {
+    std::uint32_t x = t[i & 0xff];
+    for (i >>= 8; i; i >>= 8) x ^= (t += 256)[i & 0xff];
+    return x;
+}
+
 }  // namespace sobol
 
 class PixelSampler {
 public:
-    constexpr PixelSampler(PixelSamplerType type, std::uint64_t seed, std::uint64_t pixel)
-        : rng_(seed, pixel), type_(type), key_(rng_.bits(0, 0)) {}
+    PixelSampler(PixelSamplerType type, std::uint64_t seed, std::uint64_t pixel)
+        : rng_(seed, pixel),
+          type_(type),
+          key_(rng_.bits(0, 0)),
+          tables_(type == PixelSamplerType::Sobol ? sobol::reversedByteTables() : nullptr) {}
 
     PixelSamplerType type() const { return type_; }
 
     // Uniform in [0, 1) for `dimension` of `sample`.
-    constexpr double get1D(std::uint64_t sample, std::uint32_t dimension) const {
+    double get1D(std::uint64_t sample, std::uint32_t dimension) const {
         if (type_ == PixelSamplerType::Independent) return rng_.uniform(sample, dimension);
+        if (type_ == PixelSamplerType::Sobol && dimension < sobol::kDimensions)
+            return global(sample, dimension);
         const std::uint64_t h = scrambles(dimension);
         const std::uint32_t i = sobol::owenScramble(std::uint32_t(sample), std::uint32_t(h));
         return toUnit(sobol::owenScramble(sobol::dimension0(i), std::uint32_t(h >> 32)));
@@ -106,6 +130,8 @@ public:
     Vec2d get2D(std::uint64_t sample, std::uint32_t dimension) const {
         if (type_ == PixelSamplerType::Independent)
             return Vec2d(rng_.uniform(sample, dimension), rng_.uniform(sample, dimension + 1));
+        if (type_ == PixelSamplerType::Sobol && dimension + 1 < sobol::kDimensions)
+            return Vec2d(global(sample, dimension), global(sample, dimension + 1));
         const std::uint64_t h = scrambles(dimension), g = mix64(h);
         const std::uint32_t i = sobol::owenScramble(std::uint32_t(sample), std::uint32_t(h));
         return Vec2d(toUnit(sobol::owenScramble(sobol::dimension0(i), std::uint32_t(h >> 32))),
@@ -113,6 +139,15 @@ public:
     }
 
 private:
+    // Dimension `dimension` of the Sobol sequence, Owen-scrambled by a hash of (seed, pixel,
+    // dimension); the sample index is the same in every dimension, so the dimensions stay a net.
+    double global(std::uint64_t sample, std::uint32_t dimension) const {
+        const std::uint32_t x =
+            sobol::reversedSample(std::uint32_t(sample), tables_ + 1024 * std::size_t(dimension));
+        return toUnit(
+            sobol::reverseBits(sobol::laineKarras(x, std::uint32_t(scrambles(dimension) >> 32))));
+    }
+
     // Seeds of the index shuffle (low half) and of the first value's scramble (high half).
     constexpr std::uint64_t scrambles(std::uint32_t dimension) const {
         return mix64(key_ + (std::uint64_t(dimension) + 1) * 0x9e3779b97f4a7c15ULL);
@@ -123,7 +158,8 @@ private:
 
     CounterRng rng_;
     PixelSamplerType type_;
-    std::uint64_t key_;  // of the scrambles: the pixel's, seeded
+    std::uint64_t key_;            // of the scrambles: the pixel's, seeded
+    const std::uint32_t* tables_;  // Sobol: sobol::reversedByteTables()
 };
 
 }  // namespace phongfit

@@ -218,7 +218,7 @@ private:
 
     void parseSampler(pugi::xml_node n) {
         ctx_.checkAttributes(n, {"type", "id"});
-        // Mitsuba's ldsampler and sobol are both served by the padded Owen-scrambled Sobol sampler.
+        // As Mitsuba: sobol, one Sobol sequence over all dimensions; ldsampler, padded 2D points.
         scene_.sensor.pixelSampler =
             pixelSamplerType(typeOf(n, {"independent", "ldsampler", "sobol"}));
         std::vector<pugi::xml_node> nested;

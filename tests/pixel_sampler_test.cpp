@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <boost/random/sobol.hpp>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -14,6 +16,7 @@ namespace phongfit {
 namespace {
 
 constexpr PixelSamplerType kSobol = PixelSamplerType::Sobol;
+constexpr PixelSamplerType kPadded = PixelSamplerType::Padded;
 
 // The independent sampler is CounterRng, number for number: images made with it before the Sobol
 // sampler existed are reproduced bit for bit.
@@ -31,47 +34,62 @@ TEST(PixelSampler, IndependentIsTheCounterRng) {
 
 // A value is a pure function of (seed, pixel, sample, dimension), asked in any order.
 TEST(PixelSampler, SobolValuesAreConsistentInAnyOrder) {
-    std::vector<double> forward;
-    const PixelSampler a(kSobol, 3, 1234);
-    for (int s = 0; s < 64; ++s)
-        for (std::uint32_t d = 0; d < 12; d += 3) {
-            forward.push_back(a.get1D(s, d));
-            forward.push_back(a.get2D(s, d + 1).x());
-            forward.push_back(a.get2D(s, d + 1).y());
-        }
-    const PixelSampler b(kSobol, 3, 1234);
-    for (int s = 63; s >= 0; --s)
-        for (int d = 9; d >= 0; d -= 3) {
-            const std::size_t at = std::size_t(s) * 12 + std::size_t(d);
-            ASSERT_EQ(b.get2D(s, d + 1).y(), forward[at + 2]);
-            ASSERT_EQ(b.get2D(s, d + 1).x(), forward[at + 1]);
-            ASSERT_EQ(b.get1D(s, d), forward[at]);
-        }
+    for (const PixelSamplerType type : {kSobol, kPadded}) {
+        std::vector<double> forward;
+        const PixelSampler a(type, 3, 1234);
+        for (int s = 0; s < 64; ++s)
+            for (std::uint32_t d = 0; d < 12; d += 3) {
+                forward.push_back(a.get1D(s, d));
+                forward.push_back(a.get2D(s, d + 1).x());
+                forward.push_back(a.get2D(s, d + 1).y());
+            }
+        const PixelSampler b(type, 3, 1234);
+        for (int s = 63; s >= 0; --s)
+            for (int d = 9; d >= 0; d -= 3) {
+                const std::size_t at = std::size_t(s) * 12 + std::size_t(d);
+                ASSERT_EQ(b.get2D(s, d + 1).y(), forward[at + 2]);
+                ASSERT_EQ(b.get2D(s, d + 1).x(), forward[at + 1]);
+                ASSERT_EQ(b.get1D(s, d), forward[at]);
+            }
+    }
 }
 
 TEST(PixelSampler, SobolValuesLieInTheOpenUnitInterval) {
-    for (std::uint64_t pixel = 0; pixel < 64; ++pixel) {
-        const PixelSampler sampler(kSobol, 0, pixel);
-        for (std::uint64_t s = 0; s < 256; ++s)
-            for (std::uint32_t d = 0; d < 6; ++d) {
-                const Vec2d u = sampler.get2D(s, d);
-                for (const double v : {sampler.get1D(s, d), u.x(), u.y()}) {
-                    ASSERT_GT(v, 0.0);
-                    ASSERT_LT(v, 1.0);
+    for (const PixelSamplerType type : {kSobol, kPadded})
+        for (std::uint64_t pixel = 0; pixel < 64; ++pixel) {
+            const PixelSampler sampler(type, 0, pixel);
+            for (std::uint64_t s = 0; s < 256; ++s)
+                for (std::uint32_t d = 0; d < 6; ++d) {
+                    const Vec2d u = sampler.get2D(s, d);
+                    for (const double v : {sampler.get1D(s, d), u.x(), u.y()}) {
+                        ASSERT_GT(v, 0.0);
+                        ASSERT_LT(v, 1.0);
+                    }
                 }
-            }
-    }
+        }
 }
 
 // The first 2^k samples of a 2D request form a (0, k, 2)-net: each of the 2^k elementary intervals
 // [a / 2^i, (a + 1) / 2^i) x [b / 2^(k-i), (b + 1) / 2^(k-i)) holds exactly one point, for every
 // shape i, whatever the pixel, seed and dimension. A 1D request puts one of its first 2^k values
 // in each interval of width 2^-k.
-TEST(PixelSampler, SobolPrefixesOfPowerOfTwoLengthAreNets) {
+// So are Sobol's dimensions 0 and 1, and its requests beyond the dimensions it holds (padded).
+TEST(PixelSampler, PaddedPrefixesOfPowerOfTwoLengthAreNets) {
+    struct Case {
+        PixelSamplerType type;
+        std::uint32_t dim;
+    };
+    const Case cases[] = {{kPadded, 0},
+                          {kPadded, 2},
+                          {kPadded, 7},
+                          {kPadded, 40},
+                          {kSobol, 0},
+                          {kSobol, sobol::kDimensions - 1},
+                          {kSobol, sobol::kDimensions + 40}};
     for (const std::uint64_t seed : {0ULL, 17ULL})
         for (const std::uint64_t pixel : {0ULL, 5ULL, 65535ULL})
-            for (const std::uint32_t dim : {0u, 2u, 7u, 40u}) {
-                const PixelSampler sampler(kSobol, seed, pixel);
+            for (const auto [type, dim] : cases) {
+                const PixelSampler sampler(type, seed, pixel);
                 for (int k = 0; k <= 10; ++k) {
                     const int n = 1 << k;
                     std::vector<Vec2d> points;
@@ -121,17 +139,19 @@ TEST(PixelSampler, SobolRequestsAreUniformAndIndependentAcrossPixels) {
         {"a 1D and a 2D request",
          [](const PixelSampler& p) { return std::pair(p.get1D(2, 1), p.get2D(2, 2).y()); }},
     };
-    const double alpha = sidakSignificance(0.01, int(pairings.size()));
-    for (const Pairing& p : pairings) {
-        std::vector<double> observed(kGrid * kGrid, 0.0);
-        for (int pixel = 0; pixel < kPixels; ++pixel) {
-            const auto [a, b] = p.pair(PixelSampler(kSobol, 11, std::uint64_t(pixel)));
-            ++observed[int(a * kGrid) * kGrid + int(b * kGrid)];
+    const double alpha = sidakSignificance(0.01, 2 * int(pairings.size()));
+    for (const PixelSamplerType type : {kSobol, kPadded})
+        for (const Pairing& p : pairings) {
+            std::vector<double> observed(kGrid * kGrid, 0.0);
+            for (int pixel = 0; pixel < kPixels; ++pixel) {
+                const auto [a, b] = p.pair(PixelSampler(type, 11, std::uint64_t(pixel)));
+                ++observed[int(a * kGrid) * kGrid + int(b * kGrid)];
+            }
+            const std::vector<double> expected(kGrid * kGrid, double(kPixels) / (kGrid * kGrid));
+            const ChiSquareResult r = chiSquareTest(observed, expected);
+            EXPECT_GE(r.pValue, alpha)
+                << pixelSamplerName(type) << ", " << p.what << ": chi2 = " << r.statistic;
         }
-        const std::vector<double> expected(kGrid * kGrid, double(kPixels) / (kGrid * kGrid));
-        const ChiSquareResult r = chiSquareTest(observed, expected);
-        EXPECT_GE(r.pValue, alpha) << p.what << ": chi2 = " << r.statistic;
-    }
 }
 
 // What the sampler is for: a pixel's estimate of a smooth integral converges much faster than with
@@ -153,9 +173,87 @@ TEST(PixelSampler, SobolEstimatesOfASmoothIntegralBeatIndependentOnes) {
         }
         return std::sqrt(sum / kPixels);
     };
-    const double independent = rms(PixelSamplerType::Independent), sobol = rms(kSobol);
-    EXPECT_LT(sobol, independent / 10) << "independent " << independent << ", sobol " << sobol;
-    EXPECT_GT(sobol, 0.0);
+    const double independent = rms(PixelSamplerType::Independent);
+    for (const PixelSamplerType type : {kSobol, kPadded}) {
+        const double sobol = rms(type);
+        EXPECT_LT(sobol, independent / 10)
+            << "independent " << independent << ", " << pixelSamplerName(type) << " " << sobol;
+        EXPECT_GT(sobol, 0.0);
+    }
+}
+
+// Sobol's requests share one sample index, so they are stratified jointly: a smooth integrand of a
+// BRDF direction at one vertex (a 2D request at dimension 3) and a light point at the next
+// (dimension 12), which interact, converges faster than with padded requests, which pair at random
+// (their error in the interaction falls at the independent rate). Measured: 3.4x lower RMS error
+// at 256 samples.
+TEST(PixelSampler, SobolStratifiesRequestsJointly) {
+    const auto f = [](const Vec2d& u, const Vec2d& v) {
+        return std::sin(3 * (u.x() + v.x())) * std::cos(2 * (u.y() - v.y())) + u.x() * v.y();
+    };
+    const auto estimate = [&](const PixelSampler& sampler, int samples) {
+        double sum = 0;
+        for (int s = 0; s < samples; ++s) sum += f(sampler.get2D(s, 3), sampler.get2D(s, 12));
+        return sum / samples;
+    };
+    const double exact = estimate(PixelSampler(kSobol, 3, 0), 1 << 16);
+    const auto rms = [&](PixelSamplerType type) {
+        constexpr int kPixels = 200;
+        double squares = 0;
+        for (int pixel = 0; pixel < kPixels; ++pixel)
+            squares +=
+                std::pow(estimate(PixelSampler(type, 2, std::uint64_t(pixel)), 256) - exact, 2);
+        return std::sqrt(squares / kPixels);
+    };
+    const double padded = rms(kPadded), sobol = rms(kSobol);
+    EXPECT_LT(sobol, padded / 2.5) << "padded " << padded << ", sobol " << sobol;
+}
+
+// Without scrambling, Sobol's dimensions are Joe and Kuo's: dimension 2 (their third) in natural
+// order, from their published points.
+TEST(PixelSampler, SobolDimensionsAreJoeAndKuos) {
+    const double third[] = {0, 0.5, 0.75, 0.25, 0.375, 0.875, 0.625, 0.125};
+    const std::uint32_t* tables = sobol::reversedByteTables();
+    for (std::uint32_t i = 0; i < 8; ++i) {
+        EXPECT_EQ(sobol::reverseBits(sobol::reversedSample(i, tables)), sobol::dimension0(i));
+        EXPECT_EQ(sobol::reverseBits(sobol::reversedSample(i, tables + 1024)),
+                  sobol::dimension1(i));
+        EXPECT_EQ(sobol::reverseBits(sobol::reversedSample(i, tables + 2048)) * 0x1.0p-32,
+                  third[i]);
+    }
+}
+
+// Owen scrambling maps elementary intervals onto elementary intervals, so the first 2^k points of
+// any two dimensions fall into the intervals of each shape as Boost's own (unscrambled) Sobol
+// points do: the same counts, in some order. A 1D request puts one of 2^k values in each 2^-k.
+TEST(PixelSampler, SobolPointsAreScrambledNetsOfTheSequence) {
+    constexpr int kDims = 16, kLog = 9, kPoints = 1 << kLog;
+    boost::random::sobol_engine<std::uint32_t, 32> engine(kDims);
+    // Boost's engine starts at its second point (Gray-code order): the first is 0.
+    std::vector<std::array<double, kDims>> plain(kPoints, std::array<double, kDims>{});
+    for (int i = 1; i < kPoints; ++i)
+        for (double& x : plain[i]) x = engine() * 0x1.0p-32;
+    const PixelSampler sampler(kSobol, 9, 4321);
+    std::vector<std::array<double, kDims>> scrambled(kPoints);
+    for (int s = 0; s < kPoints; ++s)
+        for (std::uint32_t d = 0; d < kDims; ++d) scrambled[s][d] = sampler.get1D(s, d);
+    const auto counts = [&](const std::vector<std::array<double, kDims>>& points, int d0, int d1,
+                            int bits0, int bits1) {
+        std::vector<int> c(std::size_t(1) << (bits0 + bits1), 0);
+        for (const auto& p : points)
+            ++c[(std::size_t(p[d0] * (1 << bits0)) << bits1) + std::size_t(p[d1] * (1 << bits1))];
+        std::sort(c.begin(), c.end());
+        return c;
+    };
+    for (int d0 = 0; d0 < kDims; ++d0) {
+        ASSERT_EQ(counts(scrambled, d0, d0, kLog, 0), std::vector<int>(kPoints, 1)) << d0;
+        for (int d1 = d0 + 1; d1 < kDims; ++d1)
+            for (int bits0 = 1; bits0 < kLog; ++bits0)
+                ASSERT_EQ(counts(scrambled, d0, d1, bits0, kLog - bits0),
+                          counts(plain, d0, d1, bits0, kLog - bits0))
+                    << "dimensions " << d0 << ", " << d1 << ": 2^" << bits0 << " x 2^"
+                    << kLog - bits0;
+    }
 }
 
 TEST(PixelSampler, DimensionOneIsTheSobolSequence) {

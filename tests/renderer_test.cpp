@@ -197,7 +197,7 @@ TEST(Furnace, RadianceIsEmissionOverOneMinusAlbedo) {
     }
 }
 
-// For both pixel samplers: the Sobol one is as counter-based as the independent one.
+// For every pixel sampler: the Sobol ones are as counter-based as the independent one.
 TEST(Determinism, SameSeedSameImageWhateverTheThreadCount) {
     PhongMaterial m;
     m.kd = Color3(0.4, 0.5, 0.6);
@@ -212,7 +212,8 @@ TEST(Determinism, SameSeedSameImageWhateverTheThreadCount) {
     scene.sensor.width = scene.sensor.height = 40;
     const Renderer renderer(scene);
     std::vector<float> previous;
-    for (const PixelSamplerType type : {PixelSamplerType::Independent, PixelSamplerType::Sobol}) {
+    for (const PixelSamplerType type :
+         {PixelSamplerType::Independent, PixelSamplerType::Sobol, PixelSamplerType::Padded}) {
         SCOPED_TRACE(pixelSamplerName(type));
         RenderOptions options;
         options.spp = 8;

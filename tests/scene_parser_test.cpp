@@ -138,10 +138,13 @@ TEST(SceneParser, SensorSamplerFilmAndFilters) {
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Gaussian);
     EXPECT_EQ(s.sensor.gaussianStddev, 0.25);
     EXPECT_EQ(s.sensor.pixelSampler, PixelSamplerType::Independent);
-    // Mitsuba's low-discrepancy names take the Sobol sampler, as does a sensor that names none.
-    for (const std::string type : {"sobol", "ldsampler"}) {
-        s = parse(sensorDoc(R"(<float name="fov" value="45"/><sampler type=")" + type + R"("/>)"));
-        EXPECT_EQ(s.sensor.pixelSampler, PixelSamplerType::Sobol) << type;
+    // Mitsuba's low-discrepancy names: sobol (also what a sensor that names none takes) and
+    // ldsampler, padded.
+    for (const auto& [type, sampler] : {std::pair{"sobol", PixelSamplerType::Sobol},
+                                        std::pair{"ldsampler", PixelSamplerType::Padded}}) {
+        s = parse(sensorDoc(R"(<float name="fov" value="45"/><sampler type=")" + std::string(type) +
+                            R"("/>)"));
+        EXPECT_EQ(s.sensor.pixelSampler, sampler) << type;
     }
     s = parse(sensorDoc(R"(<float name="fov" value="45"/>)"));
     EXPECT_EQ(s.sensor.pixelSampler, PixelSamplerType::Sobol);

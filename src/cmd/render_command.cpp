@@ -124,7 +124,8 @@ void addRenderCommand(CLI::App& app) {
     cmd->add_option_function<std::string>(
            "--pixel-sampler",
            [args](const std::string& name) { args->options.pixelSampler = pixelSamplerType(name); },
-           "samples of a pixel: independent or sobol (ldsampler: sobol) (default: the scene's "
+           "samples of a pixel: independent, sobol or ldsampler (padded Sobol points) (default: "
+           "the scene's "
            "<sampler type>, sobol when it names none)")
         ->check(CLI::IsMember(pixelSamplerNames()));
     cmd->add_option("--max-depth", args->options.maxDepth,

@@ -107,7 +107,7 @@ TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
         seconds[{row[0], spp}] = std::stod(row[2]);
     }
     std::set<std::string> expected;
-    for (const std::string prefix : {"", "sobol/"})
+    for (const std::string prefix : {"", "sobol/", "ldsampler/"})
         for (const std::string name : {"lafortune", "mixture", "cap", "cosine", "uniform"}) {
             expected.insert(prefix + name);
             expected.insert(prefix + name + "+mis");
