@@ -66,11 +66,12 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
         const Vec3d wo = frame.toLocal(-ray.dir);
         if (!(wo.z() > 0) || !(hit->ng.dot(-ray.dir) > 0)) return;  // one-sided materials
         const std::uint32_t dim = kFirstDimension + std::uint32_t(depth - 1) * dimensionsPerBounce_;
-        // At the last vertex that can reflect, on a diffuse surface, light sampling alone covers
-        // every emitter and does best: the BRDF-sampled ray, which could only find emission, is not
-        // traced (docs/design/sampling.md).
+        // At the last vertex that can reflect, on a diffuse surface under area and delta lights,
+        // light sampling alone covers every emitter and does best: the BRDF-sampled ray, which
+        // could only find emission, is not traced. An environment keeps MIS: cosine sampling is
+        // what lights a diffuse surface under a sky (docs/design/sampling.md).
         const bool lightSamplingOnly = maxDepth >= 0 && depth + 1 >= maxDepth && settings_.mis &&
-                                       slot < 0 && !(m.ks > 0).any();
+                                       slot < 0 && !(m.ks > 0).any() && lights_.environment() < 0;
 
         // Next-event estimation on every light.
         for (int l = 0; l < lights_.size(); ++l) {
