@@ -27,7 +27,7 @@ namespace phongfit {
 
 enum class PixelSamplerType { Independent, Padded, Sobol };
 
-// Mitsuba's <sampler type> names: independent; sobol, and ldsampler as its alias.
+// Mitsuba's <sampler type> names: independent; sobol; ldsampler, padded.
 inline const std::vector<std::string>& pixelSamplerNames() {
     static const std::vector<std::string> names = {"independent", "sobol", "ldsampler"};
     return names;
