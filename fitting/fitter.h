@@ -70,7 +70,10 @@ struct ExposureFit {
 
 struct FitRound {
     int round = 0;
-    std::size_t paths = 0;     // traced in the round's recordings, over all views
+    std::size_t paths = 0;  // traced in the round's recordings, over all views
+    // FitOptions::precision's paths where a fitted material is seen, relative to the first round's
+    // (PathRecorder's pathFactor).
+    double pathFactor = 1;
     double timeSeconds = 0;    // recording + solving
     double recordSeconds = 0;  // in the recorder
     // The two recorded path sets of all views: terms and vertices, in bytes.

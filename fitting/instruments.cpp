@@ -215,7 +215,8 @@ std::vector<double> residualPrecisions(
 
 template <int P>
 void pixelMoment(const Linearization<P>& at, const Instruments<P>* instruments, int sets,
-                 std::size_t i, const UsedPixel& u, Eigen::VectorXd& m, Eigen::MatrixXd* jacobian) {
+                 std::size_t i, const UsedPixel& u, Eigen::VectorXd& m, Eigen::MatrixXd* jacobian,
+                 double secondSign) {
     const bool instrumental = instruments != nullptr;
     const Eigen::Index n = Eigen::Index(u.slotCount) * P;
     m.setZero(n);
@@ -225,9 +226,11 @@ void pixelMoment(const Linearization<P>& at, const Instruments<P>* instruments, 
         const std::vector<Eigen::Matrix<double, 3, P>>& z =
             instrumental ? instruments->instruments(other) : at.jacobians[k];
         const double w = instrumental ? instruments->weights(other)[i] : at.weights[k][i];
+        const double sign = k == 1 ? secondSign : 1.0;
         for (std::uint32_t a = 0; a < u.slotCount; ++a) {
             const Eigen::Matrix<double, 3, P>& za = z[u.slotBegin + a];
-            addPackedGradient<P>(m.segment<P>(Eigen::Index(a) * P), w, za, at.residuals[k][i]);
+            addPackedGradient<P>(m.segment<P>(Eigen::Index(a) * P), sign * w, za,
+                                 at.residuals[k][i]);
             for (std::uint32_t b = 0; jacobian != nullptr && b < u.slotCount; ++b)
                 addPackedGram<P>(jacobian->block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P), w,
                                  za, at.jacobians[k][u.slotBegin + b]);
@@ -239,9 +242,9 @@ template class Instruments<kRgbBlock>;
 template class Instruments<kGreyBlock>;
 template void pixelMoment<kRgbBlock>(const Linearization<kRgbBlock>&, const Instruments<kRgbBlock>*,
                                      int, std::size_t, const UsedPixel&, Eigen::VectorXd&,
-                                     Eigen::MatrixXd*);
+                                     Eigen::MatrixXd*, double);
 template void pixelMoment<kGreyBlock>(const Linearization<kGreyBlock>&,
                                       const Instruments<kGreyBlock>*, int, std::size_t,
-                                      const UsedPixel&, Eigen::VectorXd&, Eigen::MatrixXd*);
+                                      const UsedPixel&, Eigen::VectorXd&, Eigen::MatrixXd*, double);
 
 }  // namespace phongfit

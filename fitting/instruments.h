@@ -69,9 +69,12 @@ std::vector<double> residualPrecisions(
 // Pixel i's term m of the estimating equations and, if `jacobian` is not null, its Jacobian, over
 // the pixel's slots, from `at`: W_other Z_other^T r_k summed over the sets with `instruments`,
 // least squares' rho' J^T r (its instruments are its own Jacobians) when that is null.
+// `secondSign` -1 takes the second set's residual negated: with two sets the term's part that is
+// the recordings' own noise (the image's cancels), for recordingShare.
 template <int P>
 void pixelMoment(const Linearization<P>& at, const Instruments<P>* instruments, int sets,
-                 std::size_t i, const UsedPixel& u, Eigen::VectorXd& m, Eigen::MatrixXd* jacobian);
+                 std::size_t i, const UsedPixel& u, Eigen::VectorXd& m, Eigen::MatrixXd* jacobian,
+                 double secondSign = 1);
 
 extern template class Instruments<kRgbBlock>;
 extern template class Instruments<kGreyBlock>;

@@ -2,67 +2,25 @@
 
 #include <algorithm>
 #include <cmath>
-#include <span>
 
 #include "convergence.h"
-#include "replay_jacobian.h"
 #include "standard_errors.h"
 
 namespace phongfit {
 
-namespace {
-// The sandwiches' meats over the pixels that see a material.
-struct ShareSums {
-    Eigen::MatrixXd mean, path;
-    ShareSums& operator+=(const ShareSums& other) {
-        mean += other.mean;
-        path += other.path;
-        return *this;
-    }
-};
-}  // namespace
-
 template <int P>
 std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const Linearization<P>& at,
-                                                const Eigen::MatrixXd& gram,
+                                                const Instruments<P>* instruments,
+                                                const Analysis& analysis,
                                                 const std::vector<HeldParams>& held) {
-    using Jacobian = Eigen::Matrix<double, 3, P>;
     std::vector<std::vector<double>> share(held.size(), std::vector<double>(P, 0.0));
-    if (objective.setCount() < 2) return share;
-    const UsedPixels& prep = objective.pixels();
-    const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
-    const ShareSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size)};
-    const ShareSums sums = objective.sumPixels(
-        prep.seeingMaterial, zero,
-        [&](std::size_t i, ShareSums& sum, typename Objective<P>::Scratch& scratch) {
-            const UsedPixel& u = prep.pixels[i];
-            const std::span<const std::uint32_t> slots = prep.slotsOf(u);
-            const auto where = [&](std::uint32_t a) { return Eigen::Index(slots[a]) * P; };
-            Eigen::VectorXd &m = scratch.meanScore, &q = scratch.pathScore;
-            m.setZero(Eigen::Index(u.slotCount) * P);
-            q.setZero(Eigen::Index(u.slotCount) * P);
-            const Eigen::Vector3d halfSum = 0.5 * (at.residuals[0][i] + at.residuals[1][i]);
-            const Eigen::Vector3d halfDifference = 0.5 * (at.residuals[0][i] - at.residuals[1][i]);
-            const double rho = 0.5 * (at.weights[0][i] + at.weights[1][i]);
-            for (std::uint32_t a = 0; a < u.slotCount; ++a)
-                for (const Jacobian* j :
-                     {&at.jacobians[0][u.slotBegin + a], &at.jacobians[1][u.slotBegin + a]}) {
-                    addPackedGradient<P>(m.segment<P>(Eigen::Index(a) * P), 0.5 * rho, *j, halfSum);
-                    addPackedGradient<P>(q.segment<P>(Eigen::Index(a) * P), 0.5 * rho, *j,
-                                         halfDifference);
-                }
-            for (std::uint32_t a = 0; a < u.slotCount; ++a)
-                for (std::uint32_t b = 0; b < u.slotCount; ++b) {
-                    sum.mean.block<P, P>(where(a), where(b)) +=
-                        m.segment<P>(Eigen::Index(a) * P) *
-                        m.segment<P>(Eigen::Index(b) * P).transpose();
-                    sum.path.block<P, P>(where(a), where(b)) +=
-                        q.segment<P>(Eigen::Index(a) * P) *
-                        q.segment<P>(Eigen::Index(b) * P).transpose();
-                }
-        });
-    const std::vector<std::vector<double>> all = naturalStd<P>(gram, sums.mean, held),
-                                           fromPaths = naturalStd<P>(gram, sums.path, held);
+    if (instruments == nullptr || objective.setCount() < 2) return share;
+    const Eigen::MatrixXd fromPathsScores = scores(objective, at, instruments, analysis.jacobian,
+                                                   ParameterState<P>::heldFlags(held), -1);
+    const std::vector<std::vector<double>> all = naturalStd<P>(analysis.jacobian, analysis.scores,
+                                                               held),
+                                           fromPaths = naturalStd<P>(analysis.jacobian,
+                                                                     fromPathsScores, held);
     for (std::size_t b = 0; b < all.size(); ++b)
         for (std::size_t i = 0; i < all[b].size(); ++i)
             share[b][i] =
@@ -105,11 +63,12 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
 
 template std::vector<std::vector<double>> recordingShare<kRgbBlock>(Objective<kRgbBlock>&,
                                                                     const Linearization<kRgbBlock>&,
-                                                                    const Eigen::MatrixXd&,
+                                                                    const Instruments<kRgbBlock>*,
+                                                                    const Analysis&,
                                                                     const std::vector<HeldParams>&);
 template std::vector<std::vector<double>> recordingShare<kGreyBlock>(
-    Objective<kGreyBlock>&, const Linearization<kGreyBlock>&, const Eigen::MatrixXd&,
-    const std::vector<HeldParams>&);
+    Objective<kGreyBlock>&, const Linearization<kGreyBlock>&, const Instruments<kGreyBlock>*,
+    const Analysis&, const std::vector<HeldParams>&);
 template PrecisionPlan planPrecision<kRgbBlock>(const ParameterState<kRgbBlock>&,
                                                 const std::vector<std::vector<double>>&,
                                                 const std::vector<std::vector<double>>&, double,

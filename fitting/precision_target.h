@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "analysis.h"
 #include "instruments.h"
 #include "objective.h"
 #include "parameter_state.h"
@@ -19,14 +20,15 @@ namespace phongfit {
 inline constexpr double kMostPathGrowth = 16;
 
 // Per block, the share of each parameter's variance that is the recordings' own noise (the rest is
-// the image's), at the linearization `at` of a round's solution with its Gram matrix `gram`: the
-// least-squares sandwich, with the sets' mean Jacobian Jbar, of m = rho' Jbar^T (r_A + r_B) / 2
-// and of its part q = rho' Jbar^T (r_A - r_B) / 2 (the half difference carries the recordings'
-// noise of the mean prediction and none of the image's). 0 with fewer than two sets: exact or
-// pooled sets leave no difference to measure it by.
+// the image's), at the linearization `at` of a round's instrumental-variables solution `analysis`:
+// the same sandwich as the standard errors' with each pixel's moment W_B Z_B^T r_A + W_A Z_A^T r_B
+// replaced by W_B Z_B^T r_A - W_A Z_A^T r_B, in which the image's noise cancels and the
+// recordings' stays. 0 without instruments or with fewer than two sets: exact or pooled sets
+// leave no difference to measure it by.
 template <int P>
 std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const Linearization<P>& at,
-                                                const Eigen::MatrixXd& gram,
+                                                const Instruments<P>* instruments,
+                                                const Analysis& analysis,
                                                 const std::vector<HeldParams>& held);
 
 struct PrecisionPlan {

@@ -55,7 +55,8 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out) {
         // What the images leave unconstrained is decided at the solution, not on the way.
     } while (holdUnconstrained(analysis_, prep, params_));
     if (options_.precision > 0)
-        out.pathShare = recordingShare(objective_, at_, analysis_.gram, params_.held());
+        out.pathShare = recordingShare(objective_, at_, instrumental_ ? &instruments_ : nullptr,
+                                       analysis_, params_.held());
     out.materials.clear();
     for (int m = 0; m < params_.materialCount(); ++m)
         out.materials.push_back(materialFit(params_, m, out.naturalStd[m]));

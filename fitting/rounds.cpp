@@ -139,6 +139,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
 
         FitRound r;
         r.round = round;
+        r.pathFactor = pathFactor;
         r.paths =
             tracedPaths(*sets.first) + (sets.first == sets.second ? 0 : tracedPaths(*sets.second));
         r.recordSeconds = recordSeconds;

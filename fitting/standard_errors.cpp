@@ -12,7 +12,7 @@ namespace phongfit {
 template <int P>
 Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
                        const Instruments<P>* instruments, const Eigen::MatrixXd& jacobian,
-                       const std::vector<bool>& held) {
+                       const std::vector<bool>& held, double secondSign) {
     const UsedPixels& prep = objective.pixels();
     const int sets = objective.setCount();
     const Eigen::MatrixXd inverse = freeInverse(jacobian, held);
@@ -28,7 +28,7 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
                 for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
             // A pixel that sees no material does not pull on the estimate.
             pixelMoment<P>(at, instruments, sets, i, u, scratch.moment,
-                           u.seesMaterial ? &scratch.momentJacobian : nullptr);
+                           u.seesMaterial ? &scratch.momentJacobian : nullptr, secondSign);
             const Eigen::VectorXd m =
                 u.seesMaterial ? leaveOneOutScore(scratch.momentJacobian, inverse(indices, indices),
                                                   scratch.moment)
@@ -77,7 +77,7 @@ double precision(const ParameterState<P>& params,
 
 template Eigen::MatrixXd scores<kRgbBlock>(Objective<kRgbBlock>&, const Linearization<kRgbBlock>&,
                                            const Instruments<kRgbBlock>*, const Eigen::MatrixXd&,
-                                           const std::vector<bool>&);
+                                           const std::vector<bool>&, double);
 template std::vector<std::vector<double>> naturalStd<kRgbBlock>(const Eigen::MatrixXd&,
                                                                 const Eigen::MatrixXd&,
                                                                 const std::vector<HeldParams>&);
@@ -86,7 +86,7 @@ template double precision<kRgbBlock>(const ParameterState<kRgbBlock>&,
 template Eigen::MatrixXd scores<kGreyBlock>(Objective<kGreyBlock>&,
                                             const Linearization<kGreyBlock>&,
                                             const Instruments<kGreyBlock>*, const Eigen::MatrixXd&,
-                                            const std::vector<bool>&);
+                                            const std::vector<bool>&, double);
 template std::vector<std::vector<double>> naturalStd<kGreyBlock>(const Eigen::MatrixXd&,
                                                                  const Eigen::MatrixXd&,
                                                                  const std::vector<HeldParams>&);

@@ -12,11 +12,12 @@
 namespace phongfit {
 
 // S = sum over pixels of m m^T, each pixel's m (pixelMoment) with its own pull on the estimate
-// undone (leaveOneOutScore); `jacobian` is dg/dy and `held` per flat coordinate.
+// undone (leaveOneOutScore); `jacobian` is dg/dy and `held` per flat coordinate. `secondSign` as
+// pixelMoment's.
 template <int P>
 Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
                        const Instruments<P>* instruments, const Eigen::MatrixXd& jacobian,
-                       const std::vector<bool>& held);
+                       const std::vector<bool>& held, double secondSign = 1);
 
 // Standard errors per block of its natural parameters from the sandwich with these sums; 0 for
 // the `held` ones.

@@ -42,6 +42,7 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
     for (const FitRound& r : result.rounds)
         rounds.push_back({{"round", r.round},
                           {"paths", r.paths},
+                          {"path_factor", r.pathFactor},
                           {"time_s", r.timeSeconds},
                           {"record_time_s", r.recordSeconds},
                           {"rmse", r.rmse},

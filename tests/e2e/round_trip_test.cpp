@@ -329,6 +329,9 @@ TEST_F(RoundTrip, PrecisionTargetSpendsPathsUntilMetOrAtTheImagesNoiseFloor) {
 
     const auto noisy = fit({kPoint + ":" + render(kPoint, truth, "noisy", 4)}, extra, "noisy");
     EXPECT_EQ(noisy["stop_reason"], "noise floor");
+    // The image's share is told apart from the paths': no round records more than it takes to
+    // see that more paths do not help (kMostPathGrowth, 16 times the first round's).
+    for (const auto& r : noisy["rounds"]) EXPECT_LE(r["path_factor"].get<double>(), 16) << r.dump();
 }
 
 TEST_F(RoundTrip, NoDiffuseAndEnergyConservingExtremes) {
