@@ -14,7 +14,6 @@
 // warp one point (film position, BRDF direction, light point). docs/design/sampling.md.
 #pragma once
 
-#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -69,27 +68,6 @@ constexpr std::uint32_t owenScramble(std::uint32_t x, std::uint32_t seed) {
 // Dimension 0 of the Sobol sequence: the van der Corput sequence.
 constexpr std::uint32_t dimension0(std::uint32_t i) { return reverseBits(i); }
 
-// Dimension 1: generator matrix the upper triangular Pascal matrix mod 2, whose column k is
-// v_k = v_{k-1} ^ (v_{k-1} >> 1) from v_0 = 1/2; applied a byte of the index at a time.
-struct Dimension1Tables {
-    std::array<std::array<std::uint32_t, 256>, 4> byte{};
-    constexpr Dimension1Tables() {
-        std::array<std::uint32_t, 32> v{};
-        v[0] = 1u << 31;
-        for (int k = 1; k < 32; ++k) v[k] = v[k - 1] ^ (v[k - 1] >> 1);
-        for (int b = 0; b < 4; ++b)
-            for (std::uint32_t i = 0; i < 256; ++i)
-                for (int k = 0; k < 8; ++k)
-                    if (i & (1u << k)) byte[b][i] ^= v[8 * b + k];
-    }
-};
-inline constexpr Dimension1Tables kDimension1;
-
-constexpr std::uint32_t dimension1(std::uint32_t i) {
-    return kDimension1.byte[0][i & 0xff] ^ kDimension1.byte[1][(i >> 8) & 0xff] ^
-           kDimension1.byte[2][(i >> 16) & 0xff] ^ kDimension1.byte[3][i >> 24];
-}
-
 // Joe and Kuo's Sobol sequence (new-joe-kuo-6.21201, direction numbers from Boost.Random) in its
 // first kDimensions dimensions, bit-reversed (bit 0 first, as Owen scrambling takes it), as tables
 // of the contribution of each byte of the index: dimension d's table for byte b at
@@ -112,7 +90,7 @@ public:
         : rng_(seed, pixel),
           type_(type),
           key_(rng_.bits(0, 0)),
-          tables_(type == PixelSamplerType::Sobol ? sobol::reversedByteTables() : nullptr) {}
+          tables_(type == PixelSamplerType::Independent ? nullptr : sobol::reversedByteTables()) {}
 
     PixelSamplerType type() const { return type_; }
 
@@ -135,7 +113,8 @@ public:
         const std::uint64_t h = scrambles(dimension), g = mix64(h);
         const std::uint32_t i = sobol::owenScramble(std::uint32_t(sample), std::uint32_t(h));
         return Vec2d(toUnit(sobol::owenScramble(sobol::dimension0(i), std::uint32_t(h >> 32))),
-                     toUnit(sobol::owenScramble(sobol::dimension1(i), std::uint32_t(g))));
+                     toUnit(sobol::reverseBits(
+                         sobol::laineKarras(sobol::reversedSample(i, tables_ + 1024), g))));
     }
 
 private:
@@ -159,7 +138,7 @@ private:
     CounterRng rng_;
     PixelSamplerType type_;
     std::uint64_t key_;            // of the scrambles: the pixel's, seeded
-    const std::uint32_t* tables_;  // Sobol: sobol::reversedByteTables()
+    const std::uint32_t* tables_;  // but for independent: sobol::reversedByteTables()
 };
 
 }  // namespace phongfit
