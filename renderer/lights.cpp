@@ -114,6 +114,7 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
                 l.type = Light::Type::Disk;
                 const Eigen::Matrix3d m = shape.toWorld.linear();
                 l.area = kPi * m.col(0).cross(m.col(1)).norm();
+                l.normal = (m.inverse().transpose() * Vec3d::UnitZ()).normalized();
                 break;
             }
             case ShapeDesc::Type::Rectangle: {
@@ -128,7 +129,9 @@ LightSet::LightSet(const Scene& scene, const EmbreeScene&) : scene_(scene) {
                                         .cross(triangleVertex(m, 0, 2) - triangleVertex(m, 0, 0));
                 const Vec3d n = e1.cross(e2);
                 l.area = n.norm();
-                l.triangles.push_back({v0, e1, e2, (n.dot(front) < 0 ? -n : n).normalized()});
+                l.position = v0;
+                l.edges = {e1, e2};
+                l.normal = (n.dot(front) < 0 ? -n : n).normalized();
                 break;
             }
             default: {
@@ -190,11 +193,10 @@ std::optional<LightSample> LightSet::sample(int index, const Vec3d& p, const Vec
     } else if (l.type == Light::Type::Disk) {
         const Vec2d d = squareToUniformDisk(u.x(), u.y());
         q = shape.toWorld * Vec3d(d.x(), d.y(), 0);
-        n = (shape.toWorld.linear().inverse().transpose() * Vec3d::UnitZ()).normalized();
+        n = l.normal;
     } else if (l.type == Light::Type::Parallelogram) {
-        const auto& [v0, e1, e2, normal] = l.triangles[0];
-        q = v0 + u.x() * e1 + u.y() * e2;
-        n = normal;
+        q = l.position + u.x() * l.edges[0] + u.y() * l.edges[1];
+        n = l.normal;
     } else {
         // u.x picks the triangle and is then reused within it, so that a stratified (u.x, u.y)
         // stays stratified over the whole mesh (a rectangle's two triangles share the square).

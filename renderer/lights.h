@@ -53,8 +53,11 @@ private:
         Color3 value = Color3::Zero();  // intensity, irradiance or radiance
         Vec3d position = Vec3d::Zero(), direction = Vec3d::UnitZ();
         int shape = -1;
+        // Parallelogram (a rectangle): `position` is a corner and `edges` go from it. Parallelogram
+        // and disk: the unit front normal.
+        std::array<Vec3d, 2> edges{Vec3d::Zero(), Vec3d::Zero()};
+        Vec3d normal = Vec3d::UnitZ();
         // Mesh: per triangle, cumulative area, a vertex, two edges and the unit front normal.
-        // Parallelogram (a rectangle): one entry, a corner and the two edges from it.
         std::vector<double> triangleCdf;
         std::vector<std::array<Vec3d, 4>> triangles;
         double area = 0;
