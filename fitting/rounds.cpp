@@ -68,6 +68,11 @@ std::vector<std::vector<double>> ksScatterFloor(const std::vector<MaterialScatte
     return least;
 }
 
+bool allResolved(const std::vector<MaterialFit>& materials) {
+    return std::all_of(materials.begin(), materials.end(),
+                       [](const MaterialFit& m) { return unresolvedParameters(m).empty(); });
+}
+
 }  // namespace
 
 template <int P>
@@ -171,9 +176,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         growth = 1;
         if (result.converged) {
             // Stopped moving, but not at a solution the recordings resolve: say so.
-            const bool resolved =
-                std::all_of(out.materials.begin(), out.materials.end(),
-                            [](const MaterialFit& m) { return unresolvedParameters(m).empty(); });
+            const bool resolved = allResolved(out.materials);
             const bool planned = options.precision > 0 && sets.first != sets.second;
             const PrecisionPlan plan = planned
                                            ? planPrecision<P>(params, out.naturalStd, out.pathShare,
@@ -213,9 +216,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     if (!exact) {
         widenToRoundScatter(result);
         // A converged estimate whose rounds scatter by as much as a parameter is not resolved.
-        const bool resolved =
-            std::all_of(result.materials.begin(), result.materials.end(),
-                        [](const MaterialFit& m) { return unresolvedParameters(m).empty(); });
+        const bool resolved = allResolved(result.materials);
         if (result.converged && !resolved) {
             result.converged = false;
             result.stopReason = "unresolved";
