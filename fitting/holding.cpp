@@ -29,7 +29,7 @@ bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, do
     for (int s = 0; s < params.materialCount(); ++s) exponentsHeld[s].n = true;
     const std::vector<std::vector<double>> stdNatural =
         naturalStd<P>(analysis.gram, analysis.leastSquaresScores, exponentsHeld);
-    std::vector<int> indices;
+    std::vector<int> indices, broader;
     for (int s = 0; s < params.materialCount(); ++s) {
         const HeldParams& held = params.held(s);
         if (held.n) continue;
@@ -46,9 +46,12 @@ bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, do
             const double floor = ksStdFloor ? (*ksStdFloor)[std::size_t(s)][std::size_t(g)] : 0;
             ksStd.push_back(std::max(stdNatural[s][L::specular(g)], floor));
         }
-        if (!lobeDetected(ks, ksStd, significance)) indices.push_back(s * P + L::kLogN);
+        if (lobeDetected(ks, ksStd, significance)) continue;
+        const bool broad = y[L::kLogN] < std::log(params.start(s).n);
+        (broad ? broader : indices).push_back(s * P + L::kLogN);
     }
-    return params.hold(indices);
+    const bool atStart = params.hold(indices);
+    return params.hold(broader, false) || atStart;
 }
 
 template bool holdUnconstrained<kRgbBlock>(const Analysis&, const UsedPixels&,

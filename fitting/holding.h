@@ -17,10 +17,12 @@ bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
                        ParameterState<P>& params);
 
 // n only shapes the lobe: where no free ks of a material is `significance` standard errors above
-// 0 (lobeDetected), its n is held. The standard errors are least squares' with every material's n
-// held: n has no effect at ks = 0, the hypothesis tested, and with n free they would count the
-// trade-off between ks and n that only a lobe has. `ksStdFloor` (per material, per ks group), if
-// given, is a least standard error for ks: the scatter of the rounds' estimates (round_scatter.h).
+// 0 (lobeDetected), its n is held: at its start value, or where it is if that is broader than
+// the start (a broad lobe sent back to a sharp start gave its share of the shading to kd). The
+// standard errors are least squares' with every material's n held: n has no effect at ks = 0, the
+// hypothesis tested, and with n free they would count the trade-off between ks and n that only a
+// lobe has. `ksStdFloor` (per material, per ks group), if given, is a least standard error for ks:
+// the scatter of the rounds' estimates (round_scatter.h).
 template <int P>
 bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params,
                          double significance = kLobeSignificance,

@@ -95,7 +95,7 @@ std::vector<bool> ParameterState<P>::heldFlags(const std::vector<HeldParams>& he
 }
 
 template <int P>
-bool ParameterState<P>::hold(const std::vector<int>& indices) {
+bool ParameterState<P>::hold(const std::vector<int>& indices, bool atStart) {
     bool changed = false;
     for (int index : indices) {
         const int b = index / P, i = index % P;
@@ -106,7 +106,7 @@ bool ParameterState<P>::hold(const std::vector<int>& indices) {
             continue;
         }
         NaturalVector y = natural(b);
-        y[i] = naturalFromPhong<P>(start(b))[i];
+        if (atStart) y[i] = naturalFromPhong<P>(start(b))[i];
         HeldParams& h = held_[std::size_t(b)];
         if (i == L::kLogN)
             h.n = true;

@@ -68,9 +68,10 @@ public:
     static std::vector<bool> heldFlags(const std::vector<HeldParams>& held);
     std::vector<bool> heldFlags() const { return heldFlags(held_); }
 
-    // Holds the flat parameters `indices` at their start values, keeping the block's other
-    // parameters where they are; the exposure as holdExposure does. True if any was free.
-    bool hold(const std::vector<int>& indices);
+    // Holds the flat parameters `indices` at their start values (or where they are, `atStart`
+    // false), keeping the block's other parameters where they are; the exposure as holdExposure
+    // does. True if any was free.
+    bool hold(const std::vector<int>& indices, bool atStart = true);
 
     // The exposure now, and (ExposureBlock::matched) its start and value set to s.
     double exposureValue() const;

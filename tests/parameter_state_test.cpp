@@ -64,6 +64,17 @@ TEST(ParameterState, HoldingKeepsTheStartValueAndTheOtherParameters) {
     EXPECT_NEAR(state.natural(0)[L::specular(2)], 0.35, 1e-15);
 }
 
+// A broad lobe whose ks is not significant keeps its n where it is (holdUnseenExponents): sent
+// back to a sharp start, the lobe's share of the shading went to kd.
+TEST(ParameterState, HoldingWhereItIsKeepsTheCurrentValue) {
+    ParameterState<P> state({material(0.3, 0.3, 100)}, false);
+    state.startAt({{material(0.7, 0.05, 1.2)}, 1.0});
+    EXPECT_TRUE(state.hold({L::kLogN}, false));
+    EXPECT_TRUE(state.isHeld(0, L::kLogN));
+    EXPECT_NEAR(state.natural(0)[L::kLogN], std::log(1.2), 1e-15);
+    EXPECT_NEAR(state.natural(0)[L::specular(0)], 0.05, 1e-15);
+}
+
 TEST(ParameterState, ReleasingExponentsLeavesTheExposureAlone) {
     ParameterState<P> state({material(0.3, 0.2, 50)}, true);
     state.startAt({{material(0.3, 0.2, 50)}, 1.0});
