@@ -120,7 +120,7 @@ struct FitOptions {
     // round's time says would end past it, and a solve under way at the limit stops there; the
     // first round always runs. The result then says "time budget".
     double timeBudget = 0;
-    // Target relative standard error of every free parameter (kd, ks: std / max(value, 0.01); n:
+    // Target relative standard error of every free parameter (kd, ks: std / max(value, 0.1); n:
     // std / n), 0 for none. Once the estimate has stopped moving and a parameter is less precise,
     // the next rounds record more paths (PathRecorder's pathFactor) until the target is met
     // ("precision"), more paths cannot meet it because the images' own noise dominates ("noise

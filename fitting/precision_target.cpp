@@ -42,7 +42,7 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
         const typename ParameterState<P>::NaturalVector y = params.natural(s);
         for (int i = 0; i < P; ++i) {
             if (held[std::size_t(s * P + i)]) continue;
-            const double scale = i == L::kLogN ? 1.0 : std::max(std::abs(y[i]), kReflectanceFloor);
+            const double scale = i == L::kLogN ? 1.0 : std::max(std::abs(y[i]), kPrecisionFloor);
             const double variance = std::pow(naturalStd[s][i] / scale, 2);
             if (variance <= goal) continue;
             allMet = false;

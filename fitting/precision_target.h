@@ -19,6 +19,12 @@ namespace phongfit {
 // lobe the recordings do not yet resolve looks like the image's noise.
 inline constexpr double kMostPathGrowth = 16;
 
+// A reflectance's precision is relative to max(value, kPrecisionFloor): at the default 1% a kd or
+// ks near 0 is asked for a standard error of 0.001, so that 3 of them stay within the recovery
+// matrix's absolute tolerance, 0.003. Relative to 0.01 (kReflectanceFloor, the convergence test's)
+// a ks of 0 under a noisy sky was asked for 1e-4 and took 57-131 s.
+inline constexpr double kPrecisionFloor = 0.1;
+
 // Per block, the share of each parameter's variance that is the recordings' own noise (the rest is
 // the image's), at the linearization `at` of a round's instrumental-variables solution `analysis`:
 // the same sandwich as the standard errors' with each pixel's moment W_B Z_B^T r_A + W_A Z_A^T r_B
@@ -39,10 +45,10 @@ struct PrecisionPlan {
 
 // From a round's standard errors `naturalStd` and the share of each variance that is the
 // recordings' own noise, `pathShare` (per material block, natural coordinates; the exposure block,
-// if any, is left out), for relative standard error `target` (kd and ks: std / max(value, 0.01);
-// n: std of log n). A parameter whose variance from the image alone exceeds target^2 is at the
-// noise floor; the others need paths m times as many, m = path variance / (target^2 - image
-// variance). `pathFactor`: the round's paths relative to the first round's.
+// if any, is left out), for relative standard error `target` (kd and ks: std / max(value,
+// kPrecisionFloor); n: std of log n). A parameter whose variance from the image alone exceeds
+// target^2 is at the noise floor; the others need paths m times as many, m = path variance /
+// (target^2 - image variance). `pathFactor`: the round's paths relative to the first round's.
 template <int P>
 PrecisionPlan planPrecision(const ParameterState<P>& params,
                             const std::vector<std::vector<double>>& naturalStd,

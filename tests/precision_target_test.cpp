@@ -81,11 +81,13 @@ TEST(PrecisionTarget, HeldParametersAndSmallReflectancesOnTheirFloor) {
     std::vector<std::vector<double>> std = stdAt(0.005);
     std[0][L::kLogN] = 10;
     EXPECT_TRUE(planPrecision<P>(s, std, shareOf(1), 0.01, 1).met);
-    // A reflectance of 0.001 is compared with 0.01 (kReflectanceFloor): std 5e-5 is 0.5%.
+    // A reflectance of 0.001 is compared with 0.1 (kPrecisionFloor): std 5e-4 is 0.5%, 2e-3 is 2%.
     std = stdAt(0.005);
     for (int g = 0; g < L::kGroups; ++g)
-        std[0][std::size_t(L::diffuse(g))] = std[0][std::size_t(L::specular(g))] = 5e-5;
+        std[0][std::size_t(L::diffuse(g))] = std[0][std::size_t(L::specular(g))] = 5e-4;
     EXPECT_TRUE(planPrecision<P>(stateAt(material(0.001, 0.001)), std, shareOf(1), 0.01, 1).met);
+    for (int g = 0; g < L::kGroups; ++g) std[0][std::size_t(L::specular(g))] = 2e-3;
+    EXPECT_FALSE(planPrecision<P>(stateAt(material(0.001, 0.001)), std, shareOf(1), 0.01, 1).met);
 }
 
 }  // namespace
