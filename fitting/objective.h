@@ -42,7 +42,6 @@ public:
         Eigen::MatrixXd momentJacobian;
         std::vector<Eigen::Index> indices;  // of the pixel's natural coordinates
         Eigen::VectorXd cross;
-        Eigen::VectorXd meanScore, pathScore;
     };
 
     // `instrumental`: replay both recordings (else the least-squares sets); `radius`: see

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "convergence.h"
 #include "standard_errors.h"
 
 namespace phongfit {

@@ -171,7 +171,7 @@ TEST_F(FitCommand, DemoRendersFitsBackAndPrintsTheErrors) {
     }
     EXPECT_NEAR(m["n"].get<double>(), 30, 0.1 * 30);
     // A 16-spp image holds n to 1.3%, short of the default 1%, whatever the paths: the rounds
-    // stop at its noise floor once the paths have grown kMostPathGrowth times, (16) and no further.
+    // stop at its noise floor once the paths have grown kMostPathGrowth (16) times, and no further.
     EXPECT_EQ(report["stop_reason"], "noise floor");
     for (const auto& round : report["rounds"])
         EXPECT_LE(round["path_factor"].get<double>(), 16) << round.dump();
