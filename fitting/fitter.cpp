@@ -34,7 +34,8 @@ bool MaterialFit::isUnconstrained(const std::string& name) const {
 namespace {
 
 FitResult fit(const std::vector<Observation>& observations, const RecordAll& recordAll,
-              const std::vector<PhongMaterial>& start, const FitOptions& options, int maxRounds) {
+              const std::vector<PhongMaterial>& start, const FitOptions& options, int maxRounds,
+              bool rerecords) {
     if (observations.empty()) throw Error("the fit needs at least one view");
     if (start.empty()) throw Error("the fit needs at least one material");
     if (maxRounds < 1 || options.maxIterations < 1 || !(options.tolerance > 0) ||
@@ -50,8 +51,10 @@ FitResult fit(const std::vector<Observation>& observations, const RecordAll& rec
     for (std::size_t s = 0; s < start.size(); ++s)
         validatePhong(start[s], fmt::format("start value of material {}", s));
     for (std::size_t v = 0; v < observations.size(); ++v) checkObservation(observations[v], int(v));
-    return options.grey ? runRounds<kGreyBlock>(observations, recordAll, start, options, maxRounds)
-                        : runRounds<kRgbBlock>(observations, recordAll, start, options, maxRounds);
+    return options.grey ? runRounds<kGreyBlock>(observations, recordAll, start, options, maxRounds,
+                                                rerecords)
+                        : runRounds<kRgbBlock>(observations, recordAll, start, options, maxRounds,
+                                               rerecords);
 }
 
 }  // namespace
@@ -71,7 +74,7 @@ FitResult fitMaterials(const std::vector<Observation>& observations, const PathR
         }
         return RoundSets{&paths[0], &paths[1]};
     };
-    return fit(observations, recordAll, start, options, options.maxRounds);
+    return fit(observations, recordAll, start, options, options.maxRounds, true);
 }
 
 FitResult fitPathSets(const std::vector<Observation>& observations,
@@ -82,7 +85,7 @@ FitResult fitPathSets(const std::vector<Observation>& observations,
                                     const std::vector<std::vector<float>>&, double) {
         return RoundSets{&first, &second};
     };
-    return fit(observations, recordAll, start, options, rounds);
+    return fit(observations, recordAll, start, options, rounds, false);
 }
 
 }  // namespace phongfit

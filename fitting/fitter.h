@@ -84,6 +84,9 @@ struct FitRound {
     double secondsPerIteration = 0;
     std::vector<MaterialFit> materials;
     ExposureFit exposure;  // with FitOptions::fitExposure
+    // Recorded at a sharper lobe than the converged estimate before it (sharper_probe.h); if its
+    // lobes came back, the result is that estimate's.
+    bool probe = false;
 };
 
 // The command line's --precision (fit, bench fit, demo): recorded fits spend paths until every free
@@ -148,8 +151,9 @@ struct FitResult {
     // Why the rounds stopped: "converged", "precision" or "noise floor" (FitOptions::precision),
     // "unresolved" (the estimate stopped moving, but some parameter's standard error is as large
     // as itself: unresolvedParameters), "rounds" (FitOptions::maxRounds spent), "precision not
-    // met" (they were spent after the estimate had stopped moving), "time budget"
-    // (FitOptions::timeBudget) or "interrupted".
+    // met" (they were spent after the estimate had stopped moving), "sharper lobe" (they were
+    // spent as a round recorded at a sharper lobe moved the estimate there: sharper_probe.h),
+    // "time budget" (FitOptions::timeBudget) or "interrupted".
     std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.

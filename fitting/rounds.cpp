@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <numeric>
+#include <optional>
 #include <thread>
 
 #include "convergence.h"
@@ -17,6 +18,7 @@
 #include "round_paths.h"
 #include "round_scatter.h"
 #include "round_solver.h"
+#include "sharper_probe.h"
 
 namespace phongfit {
 
@@ -78,7 +80,7 @@ bool allResolved(const std::vector<MaterialFit>& materials) {
 template <int P>
 FitResult runRounds(const std::vector<Observation>& observations, const RecordAll& recordAll,
                     const std::vector<PhongMaterial>& start, const FitOptions& options,
-                    int maxRounds) {
+                    int maxRounds, bool rerecords) {
     const auto begin = std::chrono::steady_clock::now();
     const int threads = options.threads > 0 ? options.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
@@ -97,6 +99,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     std::vector<std::vector<float>> importance;  // per view, for the next round's recording
     double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
+    std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
+    bool probeMoved = false;          // the last probe did not come back
     for (int round = 0; round < maxRounds; ++round) {
         result.stopReason = "rounds";
         if (round > 0 && options.timeBudget > 0 &&
@@ -132,9 +136,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const bool settled = withinTolerance<P>(params.naturalBlocks(recorded),
                                                 params.naturalBlocks(solved), noise, options) ||
                              (sets.first == sets.second && out.solverConverged);
+        // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
+        // (judged before lobe confirmation, which the probe's jump would put in the scatter).
+        const bool probeBack = probed && probeReturned(probed->materials, out.materials);
         // The final estimate reports only the lobes its recordings confirm, and that stand out of
         // the rounds' scatter.
-        if ((settled || round + 1 == maxRounds) && !solveOptions.stopRequested()) {
+        if ((settled || round + 1 == maxRounds) && !probeBack && !solveOptions.stopRequested()) {
             const std::vector<std::vector<double>> ksFloor =
                 exact ? std::vector<std::vector<double>>{}
                       : ksScatterFloor<P>(roundScatter(result.rounds, &out.materials),
@@ -145,6 +152,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         FitRound r;
         r.round = round;
         r.pathFactor = pathFactor;
+        r.probe = probed.has_value();
         r.paths =
             tracedPaths(*sets.first) + (sets.first == sets.second ? 0 : tracedPaths(*sets.second));
         r.recordSeconds = recordSeconds;
@@ -173,7 +181,18 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             result.converged = false;
             break;
         }
+        if (probeBack) {
+            probed->rounds = std::move(result.rounds);
+            result = std::move(*probed);
+            break;
+        }
+        if (probed) {
+            result.stopReason = "sharper lobe";
+            probeMoved = true;
+        }
+        probed.reset();
         growth = 1;
+        std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
         if (result.converged) {
             // Stopped moving, but not at a solution the recordings resolve: say so.
             const bool resolved = allResolved(out.materials);
@@ -188,16 +207,32 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                                     : !planned ? "converged"
                                     : plan.met ? "precision"
                                                : "noise floor";
-                break;
+                if (rerecords && !exact && resolved) {
+                    sharper = sharperProbe(out.materials);
+                    // After a probe that moved the estimate, only a probe that comes back ends
+                    // the fit converged.
+                    if (round + 1 == maxRounds && !sharper.empty()) {
+                        if (probeMoved) {
+                            result.converged = false;
+                            result.stopReason = "sharper lobe";
+                        }
+                        break;
+                    }
+                }
+                if (sharper.empty()) break;
+                probed = result;
+                result.converged = false;
+                result.stopReason = "rounds";
+            } else {
+                // More paths where the estimate is not yet as precise as asked.
+                result.converged = false;
+                result.stopReason = "precision not met";
+                growth = plan.pathGrowth;
+                if (options.timeBudget > 0)
+                    growth = std::clamp((options.timeBudget - secondsSince(begin)) / r.timeSeconds,
+                                        1.0, growth);
+                pathFactor *= growth;
             }
-            // More paths where the estimate is not yet as precise as asked.
-            result.converged = false;
-            result.stopReason = "precision not met";
-            growth = plan.pathGrowth;
-            if (options.timeBudget > 0)
-                growth = std::clamp((options.timeBudget - secondsSince(begin)) / r.timeSeconds, 1.0,
-                                    growth);
-            pathFactor *= growth;
         }
         if (sets.first != sets.second && round + 1 < maxRounds) {
             // Material blocks only: the exposure is global, no pixel's paths inform it more.
@@ -212,6 +247,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             importance =
                 pathImportance<P>(observations, *sets.first, *sets.second, natural, std, threads);
         }
+        // The probe round records, and starts its solve, at the sharper lobe.
+        if (!sharper.empty()) theta.materials = sharper;
     }
     if (!exact) {
         widenToRoundScatter(result);
@@ -227,8 +264,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
 }
 
 template FitResult runRounds<kRgbBlock>(const std::vector<Observation>&, const RecordAll&,
-                                        const std::vector<PhongMaterial>&, const FitOptions&, int);
+                                        const std::vector<PhongMaterial>&, const FitOptions&, int,
+                                        bool);
 template FitResult runRounds<kGreyBlock>(const std::vector<Observation>&, const RecordAll&,
-                                         const std::vector<PhongMaterial>&, const FitOptions&, int);
+                                         const std::vector<PhongMaterial>&, const FitOptions&, int,
+                                         bool);
 
 }  // namespace phongfit

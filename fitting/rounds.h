@@ -24,11 +24,12 @@ using RecordAll =
                             const std::vector<std::vector<float>>& importance, double pathFactor)>;
 
 // At most `maxRounds` rounds from `start` on inputs fitMaterials has checked; P is the block size
-// (kRgbBlock, or kGreyBlock with FitOptions::grey). Throws Error when the recorder's sets do not
-// match the observations.
+// (kRgbBlock, or kGreyBlock with FitOptions::grey). `rerecords`: the recorder records at the
+// estimate it is given (not fixed sets), so a converged lobe is probed from the sharp side
+// (sharper_probe.h). Throws Error when the recorder's sets do not match the observations.
 template <int P>
 FitResult runRounds(const std::vector<Observation>& observations, const RecordAll& recordAll,
                     const std::vector<PhongMaterial>& start, const FitOptions& options,
-                    int maxRounds);
+                    int maxRounds, bool rerecords);
 
 }  // namespace phongfit

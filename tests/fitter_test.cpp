@@ -21,6 +21,7 @@
 #include "objective.h"
 #include "parameter_state.h"
 #include "replay.h"
+#include "sharper_probe.h"
 #include "uncertainty.h"
 
 namespace phongfit {
@@ -628,22 +629,34 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
         s.split = recording + 1;
         return makePaths(s);
     };
-    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    // From above the truth (60): a lobe that broadens is recorded where it is solved.
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 200);
     FitOptions options;
     options.maxRounds = 5;
     const FitResult r = fitMaterials({obs}, record, {start}, options);
     expectFinite(r);
     EXPECT_TRUE(r.converged);
-    ASSERT_EQ(r.rounds.size(), 2u);
-    ASSERT_EQ(calls.size(), 4u);
-    for (int k = 0; k < 4; ++k) EXPECT_EQ(calls[k].first, k);
+    // Round 1 converges; round 2 probes a sharper lobe (sharper_probe.h), which comes back.
+    ASSERT_EQ(r.rounds.size(), 3u);
+    ASSERT_EQ(calls.size(), 6u);
+    for (int k = 0; k < 6; ++k) EXPECT_EQ(calls[k].first, k);
+    const MaterialFit& converged = r.rounds[1].materials[0];
     for (int k = 0; k < 2; ++k) {
         EXPECT_EQ(calls[k].second.kd[0], start.kd[0]);
         EXPECT_EQ(calls[k].second.n, start.n);
         // Round 1 records at round 0's solution.
         EXPECT_EQ(calls[2 + k].second.kd[1], r.rounds[0].materials[0].kd[1]);
         EXPECT_EQ(calls[2 + k].second.n, r.rounds[0].materials[0].n);
+        // The probe records at round 1's solution with a lobe kProbeFactor times sharper.
+        EXPECT_EQ(calls[4 + k].second.kd[1], converged.kd[1]);
+        EXPECT_DOUBLE_EQ(calls[4 + k].second.n, kProbeFactor * converged.n);
     }
+    EXPECT_FALSE(r.rounds[1].probe);
+    EXPECT_TRUE(r.rounds[2].probe);
+    EXPECT_NEAR(r.rounds[2].materials[0].n, converged.n, 1e-3 * converged.n);
+    // The result is the converged round's estimate, not the probe's.
+    EXPECT_EQ(r.materials[0].n, converged.n);
+    EXPECT_EQ(r.materials[0].kd[2], converged.kd[2]);
     expectRecovered(r.materials[0], kTruth, 1e-3);
     for (const FitRound& round : r.rounds) {
         EXPECT_GT(round.timeSeconds, 0);

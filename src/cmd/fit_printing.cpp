@@ -33,6 +33,11 @@ std::string notConvergedBecause(const FitResult& result) {
             names.size() == 1 ? "its" : "their");
     }
     const std::size_t rounds = result.rounds.size();
+    if (result.stopReason == "sharper lobe")
+        return fmt::format(
+            "{} rounds spent (--rounds) just as a round recorded at a sharper lobe than the "
+            "converged one moved the estimate there",
+            rounds);
     return fmt::format("{} round{} spent and the last still moved", rounds, rounds == 1 ? "" : "s");
 }
 
@@ -55,10 +60,11 @@ void printRound(const FitRound& r, const SceneFitProblem& problem, bool fitExpos
             r.materials[s].ksStd.maxCoeff(), r.materials[s].n, r.materials[s].nStd);
     if (fitExposure) params += fmt::format("  exposure {:.4g}", r.exposure.value);
     fmt::print(stderr,
-               "round {}: rmse {:.5g}, {} iterations of {:.3f} s, {:.2f} s, {:.3g} paths "
+               "round {}{}: rmse {:.5g}, {} iterations of {:.3f} s, {:.2f} s, {:.3g} paths "
                "({:.1f} MB), peak {:.0f} MB{}\n",
-               r.round + 1, r.rmse, r.iterations, r.secondsPerIteration, r.timeSeconds,
-               double(r.paths), r.recordedBytes / 1e6, r.peakMemoryBytes / 1e6, params);
+               r.round + 1, r.probe ? " (sharper probe)" : "", r.rmse, r.iterations,
+               r.secondsPerIteration, r.timeSeconds, double(r.paths), r.recordedBytes / 1e6,
+               r.peakMemoryBytes / 1e6, params);
 }
 
 void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,

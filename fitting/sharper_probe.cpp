@@ -1,0 +1,52 @@
+#include "sharper_probe.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "material_params.h"
+
+namespace phongfit {
+
+namespace {
+
+bool probed(const MaterialFit& m) {
+    return !m.isUnconstrained("n") && m.n > 0 && m.n * kProbeFactor <= kMaxExponent;
+}
+
+// 3 standard errors of log n.
+double threeStd(const MaterialFit& m) { return 3.0 * m.nStd / m.n; }
+
+double probeFactor(const MaterialFit& m) {
+    return std::min(std::max(kProbeFactor, std::exp(threeStd(m))), kMaxExponent / m.n);
+}
+
+}  // namespace
+
+std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials) {
+    std::vector<PhongMaterial> out;
+    bool any = false;
+    for (const MaterialFit& m : materials) {
+        PhongMaterial p = m.material();
+        if (probed(m)) {
+            p.n = m.n * probeFactor(m);
+            any = true;
+        }
+        out.push_back(p);
+    }
+    return any ? out : std::vector<PhongMaterial>{};
+}
+
+bool probeReturned(const std::vector<MaterialFit>& converged,
+                   const std::vector<MaterialFit>& probe) {
+    for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s) {
+        const MaterialFit &c = converged[s], &p = probe[s];
+        if (!probed(c) || p.isUnconstrained("n")) continue;
+        // A probe that cannot resolve its own n cannot vouch for the converged one.
+        if (p.nStd >= p.n) return false;
+        const double reach = std::max(0.5 * std::log(probeFactor(c)), threeStd(p));
+        if (std::abs(std::log(p.n) - std::log(c.n)) > reach) return false;
+    }
+    return true;
+}
+
+}  // namespace phongfit

@@ -1,0 +1,30 @@
+// Before a converged lobe is accepted: one round recorded at a sharper lobe. Paths recorded at an
+// exponent n rarely land in a lobe much sharper, so replayed there they cannot tell whether a
+// sharper lobe fits the images better; an estimate can settle on the broad side of the truth with
+// standard errors that exclude it (a 5-degree light seen in a sphere of n 30000: n 1450 +- 494,
+// "converged"). Recorded at the sharper lobe, a round resolves both: it comes back if the
+// converged estimate is the minimum, and stays sharp if the images ask for it.
+// docs/design/fitter.md, "Sharper lobes than the recordings".
+#pragma once
+
+#include <vector>
+
+#include "fitter.h"
+
+namespace phongfit {
+
+// The probe's exponent is this factor (or exp(3 standard errors of log n), if larger) above the
+// converged one, at most kMaxExponent.
+inline constexpr double kProbeFactor = 4;
+
+// `materials` with each confirmed lobe's n (free, not listed unconstrained, below kMaxExponent /
+// kProbeFactor) raised to the probe's; empty when no lobe is to be probed.
+std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials);
+
+// Whether each probed lobe came back: the probe round resolved its n (standard error below n)
+// and put it nearer the converged n than the probe's start (in log n), or within 3 of its own
+// standard errors of it; or the probe round held n (no lobe seen there).
+bool probeReturned(const std::vector<MaterialFit>& converged,
+                   const std::vector<MaterialFit>& probe);
+
+}  // namespace phongfit

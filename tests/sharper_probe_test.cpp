@@ -1,0 +1,62 @@
+// Where a converged lobe is probed, and when the probe round says it came back.
+#include "sharper_probe.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "material_params.h"
+
+namespace phongfit {
+namespace {
+
+MaterialFit lobe(double n, double nStd) {
+    MaterialFit m;
+    m.kd = Color3(0.4, 0.3, 0.2);
+    m.ks = Color3::Constant(0.5);
+    m.n = n;
+    m.nStd = nStd;
+    return m;
+}
+
+// A precise lobe is probed kProbeFactor sharper; an imprecise one by exp(3 standard errors of log
+// n); kd and ks stay. A held n, or one within kProbeFactor of kMaxExponent, is not probed; with
+// nothing to probe the list is empty.
+TEST(SharperProbe, RaisesEachFreeLobeBeyondItsStandardErrors) {
+    MaterialFit held = lobe(300, 0);
+    held.unconstrained = {"n"};
+    const std::vector<PhongMaterial> p =
+        sharperProbe({lobe(1000, 10), lobe(1000, 600), held, lobe(kMaxExponent / 2, 10)});
+    ASSERT_EQ(p.size(), 4u);
+    EXPECT_DOUBLE_EQ(p[0].n, 1000 * kProbeFactor);
+    EXPECT_DOUBLE_EQ(p[1].n, 1000 * std::exp(3 * 0.6));
+    EXPECT_EQ(p[2].n, 300);
+    EXPECT_EQ(p[3].n, kMaxExponent / 2);
+    EXPECT_TRUE((p[1].kd == lobe(1000, 600).kd).all());
+    EXPECT_TRUE((p[1].ks == lobe(1000, 600).ks).all());
+    EXPECT_TRUE(sharperProbe({held, lobe(kMaxExponent / 2, 10)}).empty());
+}
+
+// Converged at n 1000 +- 10, probed at 4000: nearer 1000 than 4000 (in log n) is back, nearer
+// 4000 is not, unless within 3 of the probe's own standard errors; a probe round that cannot
+// resolve its n (standard error >= n) vouches for nothing; one that held n saw no lobe there.
+TEST(SharperProbe, ComesBackNearerTheConvergedExponentThanTheProbe) {
+    const MaterialFit converged = lobe(1000, 10);
+    EXPECT_TRUE(probeReturned({converged}, {lobe(1000, 10)}));
+    EXPECT_TRUE(probeReturned({converged}, {lobe(1900, 10)}));
+    EXPECT_TRUE(probeReturned({converged}, {lobe(550, 10)}));
+    EXPECT_FALSE(probeReturned({converged}, {lobe(2100, 10)}));
+    EXPECT_FALSE(probeReturned({converged}, {lobe(450, 10)}));
+    EXPECT_FALSE(probeReturned({converged}, {lobe(30000, 1000)}));
+    // log(3500 / 1000) = 1.25 is within 3 standard errors of 0.5.
+    EXPECT_TRUE(probeReturned({converged}, {lobe(3500, 1750)}));
+    EXPECT_FALSE(probeReturned({converged}, {lobe(1200, 1200)}));
+    MaterialFit held = lobe(100, 0);
+    held.unconstrained = {"n"};
+    EXPECT_TRUE(probeReturned({converged}, {held}));
+    // Every probed material must come back.
+    EXPECT_FALSE(probeReturned({converged, converged}, {lobe(1000, 10), lobe(5000, 10)}));
+}
+
+}  // namespace
+}  // namespace phongfit
