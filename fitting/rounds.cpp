@@ -234,6 +234,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 pathFactor *= growth;
             }
         }
+        // The probe round records, and starts its solve, at the sharper lobe, and spends its
+        // extra paths where that lobe's parameters are informed.
+        if (!sharper.empty()) theta.materials = sharper;
         if (sets.first != sets.second && round + 1 < maxRounds) {
             // Material blocks only: the exposure is global, no pixel's paths inform it more.
             std::vector<double> natural, std;
@@ -247,8 +250,6 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             importance =
                 pathImportance<P>(observations, *sets.first, *sets.second, natural, std, threads);
         }
-        // The probe round records, and starts its solve, at the sharper lobe.
-        if (!sharper.empty()) theta.materials = sharper;
     }
     if (!exact) {
         widenToRoundScatter(result);
