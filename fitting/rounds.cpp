@@ -100,7 +100,6 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
     std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
-    bool probeMoved = false;          // the last probe did not come back
     for (int round = 0; round < maxRounds; ++round) {
         result.stopReason = "rounds";
         if (round > 0 && options.timeBudget > 0 &&
@@ -186,10 +185,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             result = std::move(*probed);
             break;
         }
-        if (probed) {
-            result.stopReason = "sharper lobe";
-            probeMoved = true;
-        }
+        if (probed) result.stopReason = "sharper lobe";
         probed.reset();
         growth = 1;
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
@@ -207,17 +203,16 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                                     : !planned ? "converged"
                                     : plan.met ? "precision"
                                                : "noise floor";
-                if (rerecords && !exact && resolved) {
-                    sharper = sharperProbe(out.materials);
-                    // After a probe that moved the estimate, only a probe that comes back ends
-                    // the fit converged.
-                    if (round + 1 == maxRounds && !sharper.empty()) {
-                        if (probeMoved) {
-                            result.converged = false;
-                            result.stopReason = "sharper lobe";
-                        }
-                        break;
+                if (rerecords && !exact && resolved) sharper = sharperProbe(out.materials);
+                if (!sharper.empty() && round + 1 == maxRounds) {
+                    // No round left to probe. A probe round in the history did not come back (one
+                    // that did ends the fit): then only a probe that does ends it converged.
+                    if (std::any_of(result.rounds.begin(), result.rounds.end(),
+                                    [](const FitRound& r) { return r.probe; })) {
+                        result.converged = false;
+                        result.stopReason = "sharper lobe";
                     }
+                    sharper.clear();
                 }
                 if (sharper.empty()) break;
                 probed = result;
