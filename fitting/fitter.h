@@ -72,7 +72,7 @@ struct FitRound {
     int round = 0;
     std::size_t paths = 0;  // traced in the round's recordings, over all views
     // FitOptions::precision's paths where a fitted material is seen, relative to the first round's
-    // (PathRecorder's pathFactor).
+    // (PathRecorder's pathFactor; kProbePaths in a sharper probe's round).
     double pathFactor = 1;
     double timeSeconds = 0;    // recording + solving
     double recordSeconds = 0;  // in the recorder
@@ -110,6 +110,11 @@ struct FitOptions {
     // and ks at their best for each value, and start from the best: a start with n off by 10x or
     // more can otherwise end in a local minimum. Off for callers that scan themselves (captures).
     bool scanStart = true;
+    // Whether the recorder draws paths by the estimate it records at (false: delta lights seen
+    // directly, so no vertex on a fitted material samples a direction and a round replays any
+    // lobe as well as another). Only such recordings can be blind to a sharper lobe: without,
+    // no sharper probe (sharper_probe.h).
+    bool recordingFollowsEstimate = true;
     // Converged when, between the estimate a round recorded at and the one it solved for, every
     // free kd, ks changed by less than tolerance * max(|value|, 0.01) and log n by less than
     // tolerance, or the parameter moved less than stdTolerance standard errors (two rounds'
@@ -152,8 +157,9 @@ struct FitResult {
     // "unresolved" (the estimate stopped moving, but some parameter's standard error is as large
     // as itself: unresolvedParameters), "rounds" (FitOptions::maxRounds spent), "precision not
     // met" (they were spent after the estimate had stopped moving), "sharper lobe" (they were
-    // spent as a round recorded at a sharper lobe moved the estimate there: sharper_probe.h),
-    // "time budget" (FitOptions::timeBudget) or "interrupted".
+    // spent as a round recorded at a sharper lobe moved the estimate there, or the last round, a
+    // probe, did not come back to the estimate reported: sharper_probe.h), "time budget"
+    // (FitOptions::timeBudget) or "interrupted".
     std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
@@ -167,9 +173,9 @@ struct FitResult {
 // from `recording` (e.g. seed it with it). `importance` (empty in the first round) says per pixel
 // how much a path there is worth to the estimate (path_importance.h): a recorder that spends extra
 // paths in proportion to it (fixed before tracing) gets more precision for its time.
-// `pathFactor` (>= 1; 1 in the first round) is how many times the first round's paths the fitter
-// asks for in the pixels that see a fitted material (FitOptions::precision), the extra ones spent
-// by `importance` too.
+// `pathFactor` (1 in the first round) is how many times the first round's paths the fitter asks
+// for in the pixels that see a fitted material (FitOptions::precision), the extra ones spent by
+// `importance` too; below 1 (the sharper probe's round, sharper_probe.h) in every pixel.
 using PathRecorder =
     std::function<PathSet(int view, const std::vector<PhongMaterial>& theta0, int recording,
                           const std::vector<float>& importance, double pathFactor)>;

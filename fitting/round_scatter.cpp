@@ -9,7 +9,8 @@ std::vector<MaterialScatter> roundScatter(const std::vector<FitRound>& rounds,
                                           const std::vector<MaterialFit>* latest) {
     constexpr std::size_t kFirst = 2;
     std::vector<const std::vector<MaterialFit>*> estimates;
-    for (std::size_t r = kFirst; r < rounds.size(); ++r) estimates.push_back(&rounds[r].materials);
+    for (std::size_t r = kFirst; r < rounds.size(); ++r)
+        if (!rounds[r].probe) estimates.push_back(&rounds[r].materials);
     if (latest && rounds.size() >= kFirst) estimates.push_back(latest);
     if (estimates.size() > std::size_t(kScatterRounds))
         estimates.erase(estimates.begin(), estimates.end() - kScatterRounds);

@@ -108,7 +108,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             break;
         }
         const auto roundBegin = std::chrono::steady_clock::now();
-        const RoundSets sets = recordAll(theta.materials, round, importance, pathFactor);
+        const double recordFactor = probed ? kProbePaths : pathFactor;
+        const RoundSets sets = recordAll(theta.materials, round, importance, recordFactor);
         const double recordSeconds = secondsSince(roundBegin);
         exact = sets.first == sets.second;
         for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
@@ -138,9 +139,13 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
         // (judged before lobe confirmation, which the probe's jump would put in the scatter).
         const bool probeBack = probed && probeReturned(probed->materials, out.materials);
+        // A probe in the last round that did not come back leaves the converged estimate standing,
+        // unvouched.
+        const bool probeLeft = probed && !probeBack && round + 1 == maxRounds;
         // The final estimate reports only the lobes its recordings confirm, and that stand out of
         // the rounds' scatter.
-        if ((settled || round + 1 == maxRounds) && !probeBack && !solveOptions.stopRequested()) {
+        if ((settled || round + 1 == maxRounds) && !probeBack && !probeLeft &&
+            !solveOptions.stopRequested()) {
             const std::vector<std::vector<double>> ksFloor =
                 exact ? std::vector<std::vector<double>>{}
                       : ksScatterFloor<P>(roundScatter(result.rounds, &out.materials),
@@ -150,7 +155,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
 
         FitRound r;
         r.round = round;
-        r.pathFactor = pathFactor;
+        r.pathFactor = recordFactor;
         r.probe = probed.has_value();
         r.paths =
             tracedPaths(*sets.first) + (sets.first == sets.second ? 0 : tracedPaths(*sets.second));
@@ -180,8 +185,13 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             result.converged = false;
             break;
         }
-        if (probeBack) {
+        if (probeBack || probeLeft) {
             probed->rounds = std::move(result.rounds);
+            if (probeLeft) {
+                widenToProbe(probed->materials, out.materials);
+                probed->converged = false;
+                probed->stopReason = "sharper lobe";
+            }
             result = std::move(*probed);
             break;
         }
@@ -195,7 +205,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             const bool planned = options.precision > 0 && sets.first != sets.second;
             const PrecisionPlan plan = planned
                                            ? planPrecision<P>(params, out.naturalStd, out.pathShare,
-                                                              options.precision, pathFactor)
+                                                              options.precision, recordFactor)
                                            : PrecisionPlan{true, false, 1};
             if (plan.met || plan.floor) {
                 result.converged = resolved;
@@ -203,7 +213,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                                     : !planned ? "converged"
                                     : plan.met ? "precision"
                                                : "noise floor";
-                if (rerecords && !exact && resolved) sharper = sharperProbe(out.materials);
+                if (rerecords && options.recordingFollowsEstimate && !exact && resolved)
+                    sharper = sharperProbe(out.materials);
                 if (!sharper.empty() && round + 1 == maxRounds) {
                     // No round left to probe. A probe round in the history did not come back (one
                     // that did ends the fit): then only a probe that does ends it converged.
@@ -226,7 +237,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 if (options.timeBudget > 0)
                     growth = std::clamp((options.timeBudget - secondsSince(begin)) / r.timeSeconds,
                                         1.0, growth);
-                pathFactor *= growth;
+                // Never fewer paths than before a probe that did not come back.
+                pathFactor = std::max(pathFactor, recordFactor * growth);
+                growth = pathFactor / recordFactor;
             }
         }
         // The probe round records, and starts its solve, at the sharper lobe, and spends its

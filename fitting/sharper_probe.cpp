@@ -49,4 +49,13 @@ bool probeReturned(const std::vector<MaterialFit>& converged,
     return true;
 }
 
+void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe) {
+    for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s) {
+        MaterialFit& c = converged[s];
+        const MaterialFit& p = probe[s];
+        if (!probed(c) || p.isUnconstrained("n") || !(p.nStd < p.n)) continue;
+        c.nStd = std::max(c.nStd, std::abs(p.n - c.n) + 3 * p.nStd);
+    }
+}
+
 }  // namespace phongfit

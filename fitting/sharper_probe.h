@@ -17,6 +17,10 @@ namespace phongfit {
 // converged one, at most kMaxExponent.
 inline constexpr double kProbeFactor = 4;
 
+// The probe round's paths relative to the first round's (PathRecorder's pathFactor): it asks only
+// where n goes, not for the converged round's precision.
+inline constexpr double kProbePaths = 0.5;
+
 // `materials` with each confirmed lobe's n (free, not listed unconstrained, below kMaxExponent /
 // kProbeFactor) raised to the probe's; empty when no lobe is to be probed.
 std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials);
@@ -26,5 +30,10 @@ std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& material
 // standard errors of it; or the probe round held n (no lobe seen there).
 bool probeReturned(const std::vector<MaterialFit>& converged,
                    const std::vector<MaterialFit>& probe);
+
+// For a probe that did not come back and no round is left: each probed lobe's n standard error in
+// `converged` raised to reach every n the probe did not rule out (its n and 3 of its standard
+// errors beyond), where the probe resolved it (standard error below n).
+void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
 }  // namespace phongfit

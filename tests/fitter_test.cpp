@@ -620,11 +620,13 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
     std::vector<std::pair<int, PhongMaterial>> calls;
+    std::vector<double> pathFactors;
     // Each recording differs (terms split in recording + 1 parts), the same model.
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0,
-                                    int recording, const std::vector<float>&, double) {
+                                    int recording, const std::vector<float>&, double pathFactor) {
         EXPECT_EQ(view, 0);
         calls.emplace_back(recording, theta0.at(0));
+        pathFactors.push_back(pathFactor);
         SphereScene s = scene;
         s.split = recording + 1;
         return makePaths(s);
@@ -650,7 +652,11 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
         // The probe records at round 1's solution with a lobe kProbeFactor times sharper.
         EXPECT_EQ(calls[4 + k].second.kd[1], converged.kd[1]);
         EXPECT_DOUBLE_EQ(calls[4 + k].second.n, kProbeFactor * converged.n);
+        // With fewer paths: it asks only where n goes.
+        EXPECT_EQ(pathFactors[std::size_t(k)], 1);
+        EXPECT_EQ(pathFactors[std::size_t(4 + k)], kProbePaths);
     }
+    EXPECT_EQ(r.rounds[2].pathFactor, kProbePaths);
     EXPECT_FALSE(r.rounds[1].probe);
     EXPECT_TRUE(r.rounds[2].probe);
     EXPECT_NEAR(r.rounds[2].materials[0].n, converged.n, 1e-3 * converged.n);
@@ -671,6 +677,47 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
     const FitResult one = fitMaterials({obs}, record, {start}, options);
     EXPECT_FALSE(one.converged);
     EXPECT_EQ(one.rounds.size(), 1u);
+}
+
+// A probe round whose paths see the lobe kProbeFactor times sharper (each vertex's log cos divided
+// by it) solves for an exponent that many times the truth's and does not come back. With no round
+// left the converged estimate stands, not converged, its n standard error reaching the probe's n.
+// Recordings that do not follow the estimate are not probed at all.
+TEST(Fitter, ProbeThatDoesNotComeBackInTheLastRoundLeavesTheConvergedEstimateUnvouched) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
+                                    const std::vector<float>&, double pathFactor) {
+        SphereScene s = scene;
+        s.split = recording + 1;
+        PathSet ps = makePaths(s);
+        if (pathFactor == kProbePaths)
+            for (PathVertex& v : ps.vertices) v.logCos /= float(kProbeFactor);
+        return ps;
+    };
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 200);
+    FitOptions options;
+    options.maxRounds = 3;
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    expectFinite(r);
+    ASSERT_EQ(r.rounds.size(), 3u);
+    ASSERT_TRUE(r.rounds[2].probe);
+    const MaterialFit& probe = r.rounds[2].materials[0];
+    EXPECT_NEAR(probe.n, kProbeFactor * kTruth.n, 0.01 * kProbeFactor * kTruth.n);
+    EXPECT_FALSE(r.converged);
+    EXPECT_EQ(r.stopReason, "sharper lobe");
+    const MaterialFit& converged = r.rounds[1].materials[0];
+    EXPECT_EQ(r.materials[0].n, converged.n);
+    EXPECT_EQ(r.materials[0].ks[1], converged.ks[1]);
+    EXPECT_DOUBLE_EQ(r.materials[0].nStd, probe.n - converged.n + 3 * probe.nStd);
+    expectRecovered(r.materials[0], kTruth, 1e-3);
+
+    options.recordingFollowsEstimate = false;
+    const FitResult unprobed = fitMaterials({obs}, record, {start}, options);
+    ASSERT_EQ(unprobed.rounds.size(), 2u);
+    EXPECT_FALSE(unprobed.rounds[1].probe);
+    EXPECT_TRUE(unprobed.converged);
+    EXPECT_EQ(unprobed.materials[0].n, r.materials[0].n);
 }
 
 // Each recording an unbiased but noisy estimate of `scene`: constants times 1 + 10% noise, drawn

@@ -58,5 +58,22 @@ TEST(SharperProbe, ComesBackNearerTheConvergedExponentThanTheProbe) {
     EXPECT_FALSE(probeReturned({converged, converged}, {lobe(1000, 10), lobe(5000, 10)}));
 }
 
+// A probe left in the last round at n 6000 +- 1000 widens the converged n 1500 +- 100 to reach
+// 9000; a probe that did not resolve n, or held it, or a lobe not probed, leaves it.
+TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
+    MaterialFit held = lobe(100, 0);
+    held.unconstrained = {"n"};
+    MaterialFit notProbed = lobe(300, 0);
+    notProbed.unconstrained = {"n"};
+    std::vector<MaterialFit> converged = {lobe(1500, 100), lobe(1500, 100), lobe(1500, 100),
+                                          notProbed};
+    widenToProbe(converged, {lobe(6000, 1000), lobe(6000, 6000), held, lobe(6000, 1000)});
+    EXPECT_DOUBLE_EQ(converged[0].nStd, 6000 - 1500 + 3 * 1000);
+    EXPECT_EQ(converged[1].nStd, 100);
+    EXPECT_EQ(converged[2].nStd, 100);
+    EXPECT_EQ(converged[3].nStd, 0);
+    EXPECT_EQ(converged[0].n, 1500);
+}
+
 }  // namespace
 }  // namespace phongfit

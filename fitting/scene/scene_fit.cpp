@@ -101,6 +101,13 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
     v.fittedBsdfs = fittedBsdfs(scene, v.scenePath, in.materials);
     if (directLightIsExact(scene)) {
         v.maxDepth = 2;
+        v.deltaLightsOnly =
+            std::none_of(scene.shapes.begin(), scene.shapes.end(),
+                         [](const ShapeDesc& s) { return bool(s.areaRadiance); }) &&
+            std::all_of(scene.emitters.begin(), scene.emitters.end(), [](const EmitterDesc& e) {
+                return e.type == EmitterDesc::Type::Point ||
+                       e.type == EmitterDesc::Type::Directional;
+            });
         v.depthNote =
             "indirect bounces (one convex object, and emitters that reflect nothing: direct "
             "light is exact, depth 2)";
@@ -183,12 +190,16 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
                                     double pathFactor) -> PathSet {
         const SceneView& v = problem.views[view];
         RecordOptions o;
-        o.spp = recording.spp;
-        o.directSpp = recording.directSpp;
+        // Below 1 (the sharper probe's round) every count shrinks, to at least a path a pixel.
+        const auto scaled = [&](int spp) {
+            return pathFactor < 1 && spp > 0 ? std::max(1, int(std::ceil(spp * pathFactor))) : spp;
+        };
+        o.spp = scaled(recording.spp);
+        o.directSpp = scaled(recording.directSpp);
         // Per pixel that sees a fitted material: --adaptive-spp, and what --precision asks for.
         const double extra =
-            recording.adaptiveSpp +
-            (pathFactor - 1) * (recording.directSpp > 0 ? recording.directSpp : recording.spp);
+            std::min(pathFactor, 1.0) * recording.adaptiveSpp +
+            std::max(pathFactor - 1, 0.0) * (o.directSpp > 0 ? o.directSpp : o.spp);
         if (!importance.empty() && extra > 0) {
             const auto seen =
                 std::count_if(importance.begin(), importance.end(), [](float w) { return w > 0; });
@@ -203,7 +214,10 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
     };
     std::vector<Observation> observations;
     for (const SceneView& v : problem.views) observations.push_back(v.observation);
-    return fitMaterials(observations, record, problem.start, options);
+    FitOptions o = options;
+    o.recordingFollowsEstimate = !std::all_of(problem.views.begin(), problem.views.end(),
+                                              [](const SceneView& v) { return v.deltaLightsOnly; });
+    return fitMaterials(observations, record, problem.start, o);
 }
 
 void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,

@@ -40,6 +40,9 @@ struct SceneView {
     std::vector<int> fittedBsdfs;  // per slot
     int maxDepth = -2;             // what is recorded (RecordOptions::maxDepth)
     std::string depthNote;         // what the pipeline left out, in words
+    // Delta lights seen directly: no recorded direction depends on the estimate
+    // (FitOptions::recordingFollowsEstimate).
+    bool deltaLightsOnly = false;
     Observation observation;
     std::size_t clipped = 0, masked = 0, nonFinite = 0;
 };

@@ -33,6 +33,12 @@ std::string notConvergedBecause(const FitResult& result) {
             names.size() == 1 ? "its" : "their");
     }
     const std::size_t rounds = result.rounds.size();
+    if (result.stopReason == "sharper lobe" && result.rounds.back().probe)
+        return fmt::format(
+            "{} rounds spent (--rounds): the last, recorded at a sharper lobe, did not come back "
+            "to "
+            "this estimate",
+            rounds);
     if (result.stopReason == "sharper lobe")
         return fmt::format(
             "{} rounds spent (--rounds) just as a round recorded at a sharper lobe than the "

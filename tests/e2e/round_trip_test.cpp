@@ -173,6 +173,8 @@ TEST_P(SubPixelHighlight, KeepsItsExponentFree) {
     const auto& m = report["materials"]["sphere"];
     EXPECT_TRUE(m["unconstrained"].empty()) << m["unconstrained"].dump();
     EXPECT_GE(report["rounds"].size(), 2u);
+    // A point light seen directly: the recordings replay any lobe alike, no sharper probe.
+    for (const auto& r : report["rounds"]) EXPECT_FALSE(r["probe"].get<bool>()) << r.dump();
     for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(m["kd"][c].get<double>(), 0.6, 0.02 * 0.6);
         const double ks = m["ks"][c].get<double>(), ksStd = m["ks_std"][c].get<double>();
@@ -258,6 +260,8 @@ TEST_F(RoundTrip, SphereUnderTheKernerProbeIsRecovered) {
     EXPECT_LT(std::abs(m["n"].get<double>() - 100), 3 * m["n_std"].get<double>());
     EXPECT_TRUE(report["converged"].get<bool>());
     EXPECT_EQ(report["views"][0]["max_depth"].get<int>(), 2) << "direct light only";
+    // Light samples and lobe samples both reach the lobe: a converged lobe is probed sharper.
+    EXPECT_TRUE(report["rounds"].back()["probe"].get<bool>());
 }
 
 TEST_F(RoundTrip, NoSpecularLobeLeavesNUnconstrained) {
