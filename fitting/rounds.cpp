@@ -75,6 +75,104 @@ bool allResolved(const std::vector<MaterialFit>& materials) {
                        [](const MaterialFit& m) { return unresolvedParameters(m).empty(); });
 }
 
+void checkRoundSets(const RoundSets& sets, const std::vector<Observation>& observations,
+                    int slots) {
+    for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
+        if (paths->size() != observations.size())
+            throw Error(fmt::format("the recorder returned {} path sets for {} views",
+                                    paths->size(), observations.size()));
+        for (std::size_t v = 0; v < observations.size(); ++v)
+            checkPathSet((*paths)[v], observations[v], int(v), slots);
+    }
+}
+
+// What fit.json and the progress line report of a round.
+FitRound roundReport(int round, double pathFactor, bool probe, const RoundSets& sets,
+                     const RoundOutcome& out) {
+    const bool exact = sets.first == sets.second;
+    FitRound r;
+    r.round = round;
+    r.pathFactor = pathFactor;
+    r.probe = probe;
+    r.paths = tracedPaths(*sets.first) + (exact ? 0 : tracedPaths(*sets.second));
+    r.rmse = out.rmse;
+    r.iterations = out.iterations;
+    r.secondsPerIteration = out.minimizerSeconds / std::max(out.iterations, 1);
+    r.materials = out.materials;
+    r.exposure = out.exposure;
+    r.recordedBytes = recordedBytes(*sets.first) + (exact ? 0 : recordedBytes(*sets.second));
+    r.peakMemoryBytes = peakResidentBytes();
+    return r;
+}
+
+// Per view and pixel, what a path is worth to the estimate `theta` with the round's standard
+// errors (path_importance.h); material blocks only: the exposure is global, no pixel's paths
+// inform it more.
+template <int P>
+std::vector<std::vector<float>> nextImportance(const std::vector<Observation>& observations,
+                                               const RoundSets& sets,
+                                               const ParameterState<P>& params,
+                                               const Estimate& theta, const RoundOutcome& out,
+                                               int threads) {
+    std::vector<double> natural, std;
+    const std::vector<typename ParameterState<P>::NaturalVector> y = params.naturalBlocks(theta);
+    for (int b = 0; b < params.materialCount(); ++b)
+        for (int i = 0; i < P; ++i) {
+            natural.push_back(y[std::size_t(b)][i]);
+            std.push_back(out.naturalStd[std::size_t(b)][std::size_t(i)]);
+        }
+    return pathImportance<P>(observations, *sets.first, *sets.second, natural, std, threads);
+}
+
+// What follows a round whose estimate stopped moving.
+struct Settled {
+    bool stop = false;                   // the fit ends with `result` as settle() left it
+    std::vector<PhongMaterial> sharper;  // else, if not empty, the next round probes here
+    double pathGrowth = 1;               // else the precision target asks this many more paths
+};
+
+// `result` holds the round's estimate `out`, which stopped moving. Its stop reason and whether it
+// is converged: resolved and as precise as FitOptions::precision asks (if `planned`: the sets are
+// recorded, so more paths can be asked for) or at the image's noise floor; a converged lobe is
+// then probed (if `probes`) in a next round, which the last round does not have.
+template <int P>
+Settled settle(FitResult& result, const RoundOutcome& out, const ParameterState<P>& params,
+               const FitOptions& options, double recordFactor, bool planned, bool probes,
+               bool lastRound) {
+    // Stopped moving, but not at a solution the recordings resolve: say so.
+    const bool resolved = allResolved(out.materials);
+    planned = planned && options.precision > 0;
+    const PrecisionPlan plan = planned ? planPrecision<P>(params, out.naturalStd, out.pathShare,
+                                                          options.precision, recordFactor)
+                                       : PrecisionPlan{true, false, 1};
+    Settled next;
+    if (!plan.met && !plan.floor) {
+        // More paths where the estimate is not yet as precise as asked.
+        result.converged = false;
+        result.stopReason = "precision not met";
+        next.pathGrowth = plan.pathGrowth;
+        return next;
+    }
+    result.converged = resolved;
+    result.stopReason = !resolved  ? "unresolved"
+                        : !planned ? "converged"
+                        : plan.met ? "precision"
+                                   : "noise floor";
+    if (probes && resolved) next.sharper = sharperProbe(out.materials);
+    if (!next.sharper.empty() && lastRound) {
+        // No round left to probe. A probe round in the history did not come back (one that did
+        // ends the fit): then only a probe that does ends it converged.
+        if (std::any_of(result.rounds.begin(), result.rounds.end(),
+                        [](const FitRound& r) { return r.probe; })) {
+            result.converged = false;
+            result.stopReason = "sharper lobe";
+        }
+        next.sharper.clear();
+    }
+    next.stop = next.sharper.empty();
+    return next;
+}
+
 }  // namespace
 
 template <int P>
@@ -112,13 +210,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const RoundSets sets = recordAll(theta.materials, round, importance, recordFactor);
         const double recordSeconds = secondsSince(roundBegin);
         exact = sets.first == sets.second;
-        for (const std::vector<PathSet>* paths : {sets.first, sets.second}) {
-            if (paths->size() != observations.size())
-                throw Error(fmt::format("the recorder returned {} path sets for {} views",
-                                        paths->size(), observations.size()));
-            for (std::size_t v = 0; v < observations.size(); ++v)
-                checkPathSet((*paths)[v], observations[v], int(v), int(start.size()));
-        }
+        checkRoundSets(sets, observations, int(start.size()));
         // Later rounds start where the last one ended, near enough for the instruments.
         RoundSolver<P> solver(observations, *sets.first, *sets.second, params, solveOptions,
                               threads, round == 0);
@@ -135,7 +227,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // solver's own convergence is the answer.
         const bool settled = withinTolerance<P>(params.naturalBlocks(recorded),
                                                 params.naturalBlocks(solved), noise, options) ||
-                             (sets.first == sets.second && out.solverConverged);
+                             (exact && out.solverConverged);
         // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
         // (judged before lobe confirmation, which the probe's jump would put in the scatter).
         const bool probeBack = probed && probeReturned(probed->materials, out.materials);
@@ -153,22 +245,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             solver.confirmLobes(out, ksFloor.empty() ? nullptr : &ksFloor);
         }
 
-        FitRound r;
-        r.round = round;
-        r.pathFactor = recordFactor;
-        r.probe = probed.has_value();
-        r.paths =
-            tracedPaths(*sets.first) + (sets.first == sets.second ? 0 : tracedPaths(*sets.second));
+        FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out);
         r.recordSeconds = recordSeconds;
         r.timeSeconds = secondsSince(roundBegin);
-        r.rmse = out.rmse;
-        r.iterations = out.iterations;
-        r.secondsPerIteration = out.minimizerSeconds / std::max(out.iterations, 1);
-        r.materials = out.materials;
-        r.exposure = out.exposure;
-        r.recordedBytes = recordedBytes(*sets.first) +
-                          (sets.first == sets.second ? 0 : recordedBytes(*sets.second));
-        r.peakMemoryBytes = peakResidentBytes();
         result.rounds.push_back(r);
         if (options.onRound) options.onRound(r);
         theta = estimateOf(out, theta, options.fitExposure);
@@ -200,40 +279,17 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         growth = 1;
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
         if (result.converged) {
-            // Stopped moving, but not at a solution the recordings resolve: say so.
-            const bool resolved = allResolved(out.materials);
-            const bool planned = options.precision > 0 && sets.first != sets.second;
-            const PrecisionPlan plan = planned
-                                           ? planPrecision<P>(params, out.naturalStd, out.pathShare,
-                                                              options.precision, recordFactor)
-                                           : PrecisionPlan{true, false, 1};
-            if (plan.met || plan.floor) {
-                result.converged = resolved;
-                result.stopReason = !resolved  ? "unresolved"
-                                    : !planned ? "converged"
-                                    : plan.met ? "precision"
-                                               : "noise floor";
-                if (rerecords && options.recordingFollowsEstimate && !exact && resolved)
-                    sharper = sharperProbe(out.materials);
-                if (!sharper.empty() && round + 1 == maxRounds) {
-                    // No round left to probe. A probe round in the history did not come back (one
-                    // that did ends the fit): then only a probe that does ends it converged.
-                    if (std::any_of(result.rounds.begin(), result.rounds.end(),
-                                    [](const FitRound& r) { return r.probe; })) {
-                        result.converged = false;
-                        result.stopReason = "sharper lobe";
-                    }
-                    sharper.clear();
-                }
-                if (sharper.empty()) break;
+            const Settled next = settle<P>(result, out, params, options, recordFactor, !exact,
+                                           rerecords && options.recordingFollowsEstimate && !exact,
+                                           round + 1 == maxRounds);
+            if (next.stop) break;
+            sharper = next.sharper;
+            if (!sharper.empty()) {
                 probed = result;
                 result.converged = false;
                 result.stopReason = "rounds";
             } else {
-                // More paths where the estimate is not yet as precise as asked.
-                result.converged = false;
-                result.stopReason = "precision not met";
-                growth = plan.pathGrowth;
+                growth = next.pathGrowth;
                 if (options.timeBudget > 0)
                     growth = std::clamp((options.timeBudget - secondsSince(begin)) / r.timeSeconds,
                                         1.0, growth);
@@ -245,19 +301,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // The probe round records, and starts its solve, at the sharper lobe, and spends its
         // extra paths where that lobe's parameters are informed.
         if (!sharper.empty()) theta.materials = sharper;
-        if (sets.first != sets.second && round + 1 < maxRounds) {
-            // Material blocks only: the exposure is global, no pixel's paths inform it more.
-            std::vector<double> natural, std;
-            const std::vector<typename ParameterState<P>::NaturalVector> y =
-                params.naturalBlocks(theta);
-            for (int b = 0; b < params.materialCount(); ++b)
-                for (int i = 0; i < P; ++i) {
-                    natural.push_back(y[std::size_t(b)][i]);
-                    std.push_back(out.naturalStd[std::size_t(b)][std::size_t(i)]);
-                }
-            importance =
-                pathImportance<P>(observations, *sets.first, *sets.second, natural, std, threads);
-        }
+        if (!exact && round + 1 < maxRounds)
+            importance = nextImportance<P>(observations, sets, params, theta, out, threads);
     }
     if (!exact) {
         widenToRoundScatter(result);
