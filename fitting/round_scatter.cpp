@@ -44,4 +44,47 @@ void widenToRoundScatter(FitResult& result) {
     }
 }
 
+namespace {
+
+// How far the estimates may still go: over the last run of moves in the last move's direction,
+// whose moves shrink by rho a round (geometric mean), the rest of a geometric series,
+// last * rho / (1 - rho), at most the run's travel (all of it where the moves do not shrink), and
+// at least the last move.
+double drift(const std::vector<double>& estimates) {
+    if (estimates.size() < 2) return 0;
+    std::size_t k = estimates.size() - 2;
+    const double last = estimates.back() - estimates[k];
+    while (k > 0 && (estimates[k] - estimates[k - 1]) * last > 0) --k;
+    const double travel = std::abs(estimates.back() - estimates[k]);
+    const std::size_t moves = estimates.size() - 1 - k;
+    if (moves < 2) return std::abs(last);
+    const double rho =
+        std::pow(std::abs(last / (estimates[k + 1] - estimates[k])), 1.0 / double(moves - 1));
+    if (rho >= 1) return travel;
+    return std::max(std::abs(last), std::min(std::abs(last) * rho / (1 - rho), travel));
+}
+
+}  // namespace
+
+void widenToDrift(FitResult& result) {
+    for (std::size_t s = 0; s < result.materials.size(); ++s) {
+        const auto along = [&](auto value) {
+            std::vector<double> estimates;
+            for (const FitRound& r : result.rounds)
+                if (!r.probe && s < r.materials.size()) estimates.push_back(value(r.materials[s]));
+            return drift(estimates);
+        };
+        MaterialFit& m = result.materials[s];
+        for (int c = 0; c < 3; ++c) {
+            if (m.kdStd[c] > 0)
+                m.kdStd[c] =
+                    std::max(m.kdStd[c], along([c](const MaterialFit& f) { return f.kd[c]; }));
+            if (m.ksStd[c] > 0)
+                m.ksStd[c] =
+                    std::max(m.ksStd[c], along([c](const MaterialFit& f) { return f.ks[c]; }));
+        }
+        if (m.nStd > 0) m.nStd = std::max(m.nStd, along([](const MaterialFit& f) { return f.n; }));
+    }
+}
+
 }  // namespace phongfit

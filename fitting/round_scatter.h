@@ -27,4 +27,11 @@ std::vector<MaterialScatter> roundScatter(const std::vector<FitRound>& rounds,
 // are left alone.
 void widenToRoundScatter(FitResult& result);
 
+// For a fit that stopped while its estimate still moved, which has not shown where it stops:
+// raises each free parameter's standard error in `result.materials` to how far its estimate may
+// still go, judged from the last rounds that moved it the same way (sharper probes left out): the
+// rest of a geometric series of their moves, the whole way they went where the moves do not
+// shrink, at least the last move.
+void widenToDrift(FitResult& result);
+
 }  // namespace phongfit

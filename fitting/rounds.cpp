@@ -306,6 +306,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     }
     if (!exact) {
         widenToRoundScatter(result);
+        // Stopped while the estimate still moved (a probe left in the last round has its own).
+        const std::string& why = result.stopReason;
+        if (!result.converged && !result.rounds.empty() && !result.rounds.back().probe &&
+            (why == "rounds" || why == "time budget" || why == "interrupted" ||
+             why == "sharper lobe"))
+            widenToDrift(result);
         // A converged estimate whose rounds scatter by as much as a parameter is not resolved.
         const bool resolved = allResolved(result.materials);
         if (result.converged && !resolved) {

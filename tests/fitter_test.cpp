@@ -677,6 +677,24 @@ TEST(Fitter, RoundsRecordTwiceAtTheCurrentEstimateAndStopWhenConverged) {
     const FitResult one = fitMaterials({obs}, record, {start}, options);
     EXPECT_FALSE(one.converged);
     EXPECT_EQ(one.rounds.size(), 1u);
+
+    // Stopped while still moving (each round's paths see the lobe 5% broader than the last's, so
+    // n moves 5% a round): n's standard error covers at least its last move (round_scatter.h,
+    // widenToDrift).
+    const PathRecorder drifting = [&](int, const std::vector<PhongMaterial>&, int recording,
+                                      const std::vector<float>&, double) {
+        PathSet ps = makePaths(scene);
+        for (PathVertex& v : ps.vertices) v.logCos *= float(1 + 0.05 * (recording / 2));
+        return ps;
+    };
+    options.maxRounds = 2;
+    const FitResult two = fitMaterials({obs}, drifting, {start}, options);
+    EXPECT_FALSE(two.converged);
+    EXPECT_EQ(two.stopReason, "rounds");
+    ASSERT_EQ(two.rounds.size(), 2u);
+    const double lastMove = std::abs(two.rounds[1].materials[0].n - two.rounds[0].materials[0].n);
+    EXPECT_GT(lastMove, two.rounds[1].materials[0].nStd);
+    EXPECT_GE(two.materials[0].nStd, lastMove);
 }
 
 // A probe round whose paths see the lobe kProbeFactor times sharper (each vertex's log cos divided

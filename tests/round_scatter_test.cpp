@@ -77,5 +77,50 @@ TEST(RoundScatter, TakesTheRoundUnderWayAsTheLatestEstimate) {
     EXPECT_EQ(s[0].logN, 0);
 }
 
+FitResult history(const std::vector<double>& n, double nStd) {
+    FitResult result;
+    for (double x : n) result.rounds.push_back(roundAt(0.6, 0.25, x));
+    result.materials = {result.rounds.back().materials[0]};
+    result.materials[0].nStd = nStd;
+    result.materials[0].kdStd = Color3::Constant(1e-3);
+    return result;
+}
+
+// A fit that stopped while moving: a climb whose moves do not shrink (the 40-degree sphere at
+// n 30000: 857, 2036, 8743, 11000, 15240, 17070) may go on as far as it went; one that converges
+// geometrically (moves 200, 65, 4.5, 0.4: rho 0.126) has the last move left at least; a swing
+// back has the last move. Steady kd keeps its standard error; probe rounds do not count.
+TEST(RoundDrift, RaisesStandardErrorsToHowFarTheEstimateMayStillGo) {
+    FitResult climb = history({857, 2036, 8743, 11000, 15240, 17070}, 2890);
+    widenToDrift(climb);
+    EXPECT_DOUBLE_EQ(climb.materials[0].nStd, 17070 - 857);
+    EXPECT_EQ(climb.materials[0].kdStd[0], 1e-3);
+
+    FitResult converging = history({300, 100, 35, 30.5, 30.1}, 0.1);
+    widenToDrift(converging);
+    EXPECT_NEAR(converging.materials[0].nStd, 0.4, 1e-12);
+
+    // Moves 4, 2, 1 (rho 0.5): one more move of 1 is left; a standard error above it stays.
+    FitResult halving = history({100, 104, 106, 107}, 0.5);
+    widenToDrift(halving);
+    EXPECT_NEAR(halving.materials[0].nStd, 1, 1e-12);
+    halving.materials[0].nStd = 3;
+    widenToDrift(halving);
+    EXPECT_EQ(halving.materials[0].nStd, 3);
+
+    FitResult swing = history({1000, 1100, 1000, 1100}, 10);
+    widenToDrift(swing);
+    EXPECT_DOUBLE_EQ(swing.materials[0].nStd, 100);
+
+    FitResult probed = history({1000, 1100, 5000, 1200}, 10);
+    probed.rounds[2].probe = true;
+    widenToDrift(probed);
+    EXPECT_DOUBLE_EQ(probed.materials[0].nStd, 200);
+
+    FitResult held = history({857, 2036, 8743}, 0);
+    widenToDrift(held);
+    EXPECT_EQ(held.materials[0].nStd, 0);
+}
+
 }  // namespace
 }  // namespace phongfit
