@@ -198,10 +198,17 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
     std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
+    // The converged estimate the last round's probe did not come back to, widened to the probe:
+    // what the fit reports if it ends before another round.
+    std::optional<FitResult> unvouched;
     for (int round = 0; round < maxRounds; ++round) {
         result.stopReason = "rounds";
         if (round > 0 && options.timeBudget > 0 &&
             secondsSince(begin) + growth * result.rounds.back().timeSeconds > options.timeBudget) {
+            if (unvouched) {
+                unvouched->rounds = std::move(result.rounds);
+                result = std::move(*unvouched);
+            }
             result.stopReason = "time budget";
             break;
         }
@@ -229,11 +236,14 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                                                 params.naturalBlocks(solved), noise, options) ||
                              (exact && out.solverConverged);
         // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
-        // (judged before lobe confirmation, which the probe's jump would put in the scatter).
-        const bool probeBack = probed && probeReturned(probed->materials, out.materials);
-        // A probe in the last round that did not come back leaves the converged estimate standing,
-        // unvouched.
-        const bool probeLeft = probed && !probeBack && round + 1 == maxRounds;
+        // (judged before lobe confirmation, which the probe's jump would put in the scatter) from
+        // a solve not cut short.
+        const bool probeBack = probed && !solveOptions.stopRequested() &&
+                               probeReturned(probed->materials, out.materials);
+        // A probe that did not come back, with no round after it, leaves the converged estimate
+        // standing, unvouched.
+        const bool probeLeft =
+            probed && !probeBack && (round + 1 == maxRounds || solveOptions.stopRequested());
         // The final estimate reports only the lobes its recordings confirm, and that stand out of
         // the rounds' scatter.
         if ((settled || round + 1 == maxRounds) && !probeBack && !probeLeft &&
@@ -257,26 +267,35 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
-        if (solveOptions.stopRequested()) {
+        const bool stop = solveOptions.stopRequested();
+        if (probeBack || probeLeft) {
+            probed->rounds = std::move(result.rounds);
+            if (probeLeft) {
+                widenToProbe(probed->materials, out.materials);
+                probed->converged = false;
+                probed->interrupted = stop && !budgetSpent();
+                probed->stopReason = !stop                 ? "sharper lobe"
+                                     : probed->interrupted ? "interrupted"
+                                                           : "time budget";
+            }
+            result = std::move(*probed);
+            break;
+        }
+        if (stop) {
             // The round's solves may have been cut short: not a converged estimate.
             result.interrupted = !budgetSpent();
             result.stopReason = result.interrupted ? "interrupted" : "time budget";
             result.converged = false;
             break;
         }
-        if (probeBack || probeLeft) {
-            probed->rounds = std::move(result.rounds);
-            if (probeLeft) {
-                widenToProbe(probed->materials, out.materials);
-                probed->converged = false;
-                probed->stopReason = "sharper lobe";
-            }
-            result = std::move(*probed);
-            break;
+        unvouched.reset();
+        if (probed) {
+            unvouched = std::move(*probed);
+            unvouched->converged = false;
+            widenToProbe(unvouched->materials, out.materials);
         }
-        if (probed) result.stopReason = "sharper lobe";
         probed.reset();
-        growth = 1;
+        growth = pathFactor / recordFactor;  // the next round's paths against this one's
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
         if (result.converged) {
             const Settled next = settle<P>(result, out, params, options, recordFactor, !exact,
@@ -288,6 +307,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 probed = result;
                 result.converged = false;
                 result.stopReason = "rounds";
+                growth = kProbePaths / recordFactor;
             } else {
                 growth = next.pathGrowth;
                 if (options.timeBudget > 0)
@@ -306,7 +326,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     }
     if (!exact) {
         widenToRoundScatter(result);
-        // Stopped while the estimate still moved (a probe left in the last round has its own).
+        // Stopped while the estimate still moved (a probe left unvouched has its own widening).
         const std::string& why = result.stopReason;
         if (!result.converged && !result.rounds.empty() && !result.rounds.back().probe &&
             (why == "rounds" || why == "time budget" || why == "interrupted" ||

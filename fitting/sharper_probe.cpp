@@ -20,6 +20,12 @@ double probeFactor(const MaterialFit& m) {
     return std::min(std::max(kProbeFactor, std::exp(threeStd(m))), kMaxExponent / m.n);
 }
 
+// Whether probe round `p` tells converged lobe `c`'s n from the probe's start: n resolved and
+// 3 standard errors of log n short of the way between them.
+bool tellsApart(const MaterialFit& c, const MaterialFit& p) {
+    return p.nStd < p.n && threeStd(p) < std::log(probeFactor(c));
+}
+
 }  // namespace
 
 std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials) {
@@ -41,8 +47,8 @@ bool probeReturned(const std::vector<MaterialFit>& converged,
     for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s) {
         const MaterialFit &c = converged[s], &p = probe[s];
         if (!probed(c) || p.isUnconstrained("n")) continue;
-        // A probe that cannot resolve its own n cannot vouch for the converged one.
-        if (p.nStd >= p.n) return false;
+        // A probe that cannot tell the converged n from its own start vouches for nothing.
+        if (!tellsApart(c, p)) return false;
         const double reach = std::max(0.5 * std::log(probeFactor(c)), threeStd(p));
         if (std::abs(std::log(p.n) - std::log(c.n)) > reach) return false;
     }
@@ -53,8 +59,10 @@ void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<Materia
     for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s) {
         MaterialFit& c = converged[s];
         const MaterialFit& p = probe[s];
-        if (!probed(c) || p.isUnconstrained("n") || !(p.nStd < p.n)) continue;
-        c.nStd = std::max(c.nStd, std::abs(p.n - c.n) + 3 * p.nStd);
+        if (!probed(c) || p.isUnconstrained("n")) continue;
+        const double reach =
+            tellsApart(c, p) ? std::abs(p.n - c.n) + 3 * p.nStd : c.n * (probeFactor(c) - 1);
+        c.nStd = std::max(c.nStd, reach);
     }
 }
 

@@ -25,15 +25,16 @@ inline constexpr double kProbePaths = 0.5;
 // kProbeFactor) raised to the probe's; empty when no lobe is to be probed.
 std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials);
 
-// Whether each probed lobe came back: the probe round resolved its n (standard error below n)
-// and put it nearer the converged n than the probe's start (in log n), or within 3 of its own
-// standard errors of it; or the probe round held n (no lobe seen there).
+// Whether each probed lobe came back: the probe round tells the converged n from its own start
+// (3 standard errors of log n short of the way between them, and below n) and put its n nearer the
+// converged n than the start (in log n), or within 3 of its own standard errors of it; or the
+// probe round held n (no lobe seen there).
 bool probeReturned(const std::vector<MaterialFit>& converged,
                    const std::vector<MaterialFit>& probe);
 
-// For a probe that did not come back and no round is left: each probed lobe's n standard error in
-// `converged` raised to reach every n the probe did not rule out (its n and 3 of its standard
-// errors beyond), where the probe resolved it (standard error below n).
+// For a probe that did not come back and no round after it: each probed lobe's n standard error
+// in `converged` raised to reach every n the probe did not rule out: its n and 3 of its standard
+// errors beyond where it tells the converged n from its start (as probeReturned), else the start.
 void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
 }  // namespace phongfit

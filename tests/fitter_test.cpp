@@ -730,6 +730,26 @@ TEST(Fitter, ProbeThatDoesNotComeBackInTheLastRoundLeavesTheConvergedEstimateUnv
     EXPECT_DOUBLE_EQ(r.materials[0].nStd, probe.n - converged.n + 3 * probe.nStd);
     expectRecovered(r.materials[0], kTruth, 1e-3);
 
+    // An interrupt during the probe round (here 5 rounds allowed) ends the fit the same way.
+    bool probing = false;
+    const PathRecorder watched = [&](int view, const std::vector<PhongMaterial>& theta0,
+                                     int recording, const std::vector<float>& importance,
+                                     double pathFactor) {
+        probing = probing || pathFactor == kProbePaths;
+        return record(view, theta0, recording, importance, pathFactor);
+    };
+    FitOptions interrupted = options;
+    interrupted.maxRounds = 5;
+    interrupted.stopRequested = [&] { return probing; };
+    const FitResult cut = fitMaterials({obs}, watched, {start}, interrupted);
+    ASSERT_EQ(cut.rounds.size(), 3u);
+    EXPECT_TRUE(cut.rounds[2].probe);
+    EXPECT_FALSE(cut.converged);
+    EXPECT_TRUE(cut.interrupted);
+    EXPECT_EQ(cut.stopReason, "interrupted");
+    EXPECT_EQ(cut.materials[0].n, converged.n);
+    EXPECT_GE(cut.materials[0].nStd, (kProbeFactor - 1) * converged.n);
+
     options.recordingFollowsEstimate = false;
     const FitResult unprobed = fitMaterials({obs}, record, {start}, options);
     ASSERT_EQ(unprobed.rounds.size(), 2u);

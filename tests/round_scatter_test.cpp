@@ -64,6 +64,18 @@ TEST(RoundScatter, NeedsTwoSettledRoundsAndLooksAtTheLastFew) {
     EXPECT_EQ(result.materials[0].nStd, 1);
 }
 
+// A sharper probe's round (fewer paths, a start 4x away) is not the recordings' scatter.
+TEST(RoundScatter, LeavesSharperProbesOut) {
+    std::vector<FitRound> rounds = {roundAt(0.1, 0.9, 5), roundAt(0.5, 0.3, 800),
+                                    roundAt(0.6, 0.25, 1000), roundAt(0.6, 0.25, 1000),
+                                    roundAt(0.6, 0.3, 4000)};
+    rounds.back().probe = true;
+    const std::vector<MaterialScatter> s = roundScatter(rounds);
+    ASSERT_EQ(s.size(), 1u);
+    EXPECT_EQ(s[0].ks[0], 0);
+    EXPECT_EQ(s[0].logN, 0);
+}
+
 // The lobe test asks during the last round, before it joins the list: its estimate comes last.
 TEST(RoundScatter, TakesTheRoundUnderWayAsTheLatestEstimate) {
     const std::vector<FitRound> rounds = {roundAt(0.1, 0.9, 5), roundAt(0.5, 0.3, 800),

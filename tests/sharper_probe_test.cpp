@@ -38,8 +38,9 @@ TEST(SharperProbe, RaisesEachFreeLobeBeyondItsStandardErrors) {
 }
 
 // Converged at n 1000 +- 10, probed at 4000: nearer 1000 than 4000 (in log n) is back, nearer
-// 4000 is not, unless within 3 of the probe's own standard errors; a probe round that cannot
-// resolve its n (standard error >= n) vouches for nothing; one that held n saw no lobe there.
+// 4000 is not, unless within 3 of the probe's own standard errors; a probe round that cannot tell
+// 1000 from 4000 (3 standard errors of log n at least log 4, or n's at least n) vouches for
+// nothing; one that held n saw no lobe there.
 TEST(SharperProbe, ComesBackNearerTheConvergedExponentThanTheProbe) {
     const MaterialFit converged = lobe(1000, 10);
     EXPECT_TRUE(probeReturned({converged}, {lobe(1000, 10)}));
@@ -48,8 +49,11 @@ TEST(SharperProbe, ComesBackNearerTheConvergedExponentThanTheProbe) {
     EXPECT_FALSE(probeReturned({converged}, {lobe(2100, 10)}));
     EXPECT_FALSE(probeReturned({converged}, {lobe(450, 10)}));
     EXPECT_FALSE(probeReturned({converged}, {lobe(30000, 1000)}));
-    // log(3500 / 1000) = 1.25 is within 3 standard errors of 0.5.
-    EXPECT_TRUE(probeReturned({converged}, {lobe(3500, 1750)}));
+    // log(2500 / 1000) = 0.92 is within 3 standard errors of 0.4 (1.2 < log 4).
+    EXPECT_TRUE(probeReturned({converged}, {lobe(2500, 1000)}));
+    // 3 x 0.5 > log 4: the probe stayed near its start, and could not have told.
+    EXPECT_FALSE(probeReturned({converged}, {lobe(3500, 1750)}));
+    EXPECT_FALSE(probeReturned({converged}, {lobe(1000, 480)}));
     EXPECT_FALSE(probeReturned({converged}, {lobe(1200, 1200)}));
     MaterialFit held = lobe(100, 0);
     held.unconstrained = {"n"};
@@ -59,7 +63,8 @@ TEST(SharperProbe, ComesBackNearerTheConvergedExponentThanTheProbe) {
 }
 
 // A probe left in the last round at n 6000 +- 1000 widens the converged n 1500 +- 100 to reach
-// 9000; a probe that did not resolve n, or held it, or a lobe not probed, leaves it.
+// 9000; one that cannot tell 1500 from its start, 6000, widens it to reach the start; a probe that
+// held n, or a lobe not probed, leaves it.
 TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
     MaterialFit held = lobe(100, 0);
     held.unconstrained = {"n"};
@@ -69,7 +74,7 @@ TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
                                           notProbed};
     widenToProbe(converged, {lobe(6000, 1000), lobe(6000, 6000), held, lobe(6000, 1000)});
     EXPECT_DOUBLE_EQ(converged[0].nStd, 6000 - 1500 + 3 * 1000);
-    EXPECT_EQ(converged[1].nStd, 100);
+    EXPECT_DOUBLE_EQ(converged[1].nStd, 1500 * (kProbeFactor - 1));
     EXPECT_EQ(converged[2].nStd, 100);
     EXPECT_EQ(converged[3].nStd, 0);
     EXPECT_EQ(converged[0].n, 1500);
