@@ -188,8 +188,11 @@ void requireTiffWithinLimits(const std::string& path, const char* what, std::int
     const std::int64_t first = directory + (big ? 8 : 2);
     if (directory < 0 || entries < 0 || entries > (size - first) / entryBytes)
         invalidHeader(path, what, "a TIFF's first directory lies within the file");
-    std::int64_t width = -1, height = -1, bits = 1, samples = 1, rowsPerStrip = -1;
+    // A tag listed twice counts at its largest: libtiff keeps one of them, and which is not ours
+    // to guess (png_fuzz found a width of 65532, then 1).
+    std::int64_t width = -1, height = -1, bits = 1, samples = 1;
     std::int64_t tileWidth = -1, tileHeight = -1;
+    std::vector<std::int64_t> rowsPerStrip;
     for (std::int64_t i = 0; i < entries; ++i) {
         const std::int64_t entry = first + i * entryBytes;
         const std::int64_t tag = file.uint(entry, 2, bigEndian);
@@ -202,25 +205,25 @@ void requireTiffWithinLimits(const std::string& path, const char* what, std::int
         const std::int64_t value = file.uint(at, valueBytes, bigEndian);  // the first value
         switch (tag) {
             case 256:
-                width = value;
+                width = std::max(width, value);
                 break;
             case 257:
-                height = value;
+                height = std::max(height, value);
                 break;
             case 258:
-                bits = value;
+                bits = std::max(bits, value);
                 break;
             case 277:
-                samples = value;
+                samples = std::max(samples, value);
                 break;
             case 278:
-                rowsPerStrip = value;
+                rowsPerStrip.push_back(value);
                 break;
             case 322:
-                tileWidth = value;
+                tileWidth = std::max(tileWidth, value);
                 break;
             case 323:
-                tileHeight = value;
+                tileHeight = std::max(tileHeight, value);
                 break;
             default:
                 break;
@@ -236,9 +239,11 @@ void requireTiffWithinLimits(const std::string& path, const char* what, std::int
     // whole image, not values past the image's length (png_fuzz found a 65532 x 3 image with
     // 14851 rows per strip, for which OpenCV asked for 3.9 GB).
     const bool tiled = tileWidth > 0 && tileHeight > 0;
-    const bool wholeImage = rowsPerStrip <= 0 || rowsPerStrip == 0xFFFFFFFF;
-    const double blockPixels = tiled ? double(tileWidth) * double(tileHeight)
-                                     : double(width) * double(wholeImage ? height : rowsPerStrip);
+    std::int64_t stripRows = rowsPerStrip.empty() ? height : 0;
+    for (std::int64_t rows : rowsPerStrip)
+        stripRows = std::max(stripRows, rows <= 0 || rows == 0xFFFFFFFF ? height : rows);
+    const double blockPixels =
+        tiled ? double(tileWidth) * double(tileHeight) : double(width) * double(stripRows);
     const double bytes = blockPixels * double(std::max<std::int64_t>(samples, 1)) *
                          double((std::max<std::int64_t>(bits, 1) + 7) / 8);
     requireBlockBytes(path, tiled ? "tile" : "strip", std::int64_t(std::min(bytes, 0x1p62)));
