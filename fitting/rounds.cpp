@@ -268,24 +268,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
         const bool stop = solveOptions.stopRequested();
-        if (probeBack || probeLeft) {
+        if (probeBack) {
             probed->rounds = std::move(result.rounds);
-            if (probeLeft) {
-                widenToProbe(probed->materials, out.materials);
-                probed->converged = false;
-                probed->interrupted = stop && !budgetSpent();
-                probed->stopReason = !stop                 ? "sharper lobe"
-                                     : probed->interrupted ? "interrupted"
-                                                           : "time budget";
-            }
             result = std::move(*probed);
-            break;
-        }
-        if (stop) {
-            // The round's solves may have been cut short: not a converged estimate.
-            result.interrupted = !budgetSpent();
-            result.stopReason = result.interrupted ? "interrupted" : "time budget";
-            result.converged = false;
             break;
         }
         unvouched.reset();
@@ -294,6 +279,20 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             unvouched->converged = false;
             widenToProbe(unvouched->materials, out.materials);
         }
+        if (probeLeft) {
+            unvouched->rounds = std::move(result.rounds);
+            result = std::move(*unvouched);
+            unvouched.reset();
+            result.stopReason = "sharper lobe";
+        }
+        if (stop) {
+            // The round's solves may have been cut short: not a converged estimate.
+            result.interrupted = !budgetSpent();
+            result.stopReason = result.interrupted ? "interrupted" : "time budget";
+            result.converged = false;
+            break;
+        }
+        if (probeLeft) break;
         probed.reset();
         growth = pathFactor / recordFactor;  // the next round's paths against this one's
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)

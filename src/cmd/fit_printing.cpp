@@ -35,9 +35,8 @@ std::string notConvergedBecause(const FitResult& result) {
     const std::size_t rounds = result.rounds.size();
     if (result.stopReason == "sharper lobe" && result.rounds.back().probe)
         return fmt::format(
-            "{} rounds spent (--rounds): the last, recorded at a sharper lobe, did not come back "
-            "to "
-            "this estimate",
+            "{} rounds spent (--rounds): the last, recorded at a sharper lobe, did not come "
+            "back to this estimate",
             rounds);
     if (result.stopReason == "sharper lobe")
         return fmt::format(
