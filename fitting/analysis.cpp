@@ -1,5 +1,6 @@
 #include "analysis.h"
 
+#include <cmath>
 #include <span>
 
 #include "standard_errors.h"
@@ -14,8 +15,8 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
     const std::vector<double> y = params.naturalCoordinates();
     const int sets = objective.setCount();
     const bool moments = instruments == nullptr || !instruments->empty();
+    at.y = y;
     for (int k = 0; k < sets; ++k) {
-        at.jacobians[k].resize(prep.slots.size());
         at.residuals[k].resize(prep.pixels.size());
         at.weights[k].resize(prep.pixels.size());
     }
@@ -31,23 +32,23 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
             Eigen::Vector3d mean = Eigen::Vector3d::Zero();
             Eigen::VectorXd& l = scratch.moment;
             l.setZero(Eigen::Index(u.slotCount) * P);
+            Eigen::Vector3d r[2];
             for (int k = 0; k < sets; ++k) {
-                const Eigen::Vector3d r = objective.residual(k, u, y.data(), scratch, true);
+                r[k] = objective.residual(k, u, y.data(), scratch, true);
                 const std::vector<Jacobian>& j = scratch.jacobians[k];
-                const double rho = objective.lossWeight(r.squaredNorm());
-                at.residuals[k][i] = r;
-                at.weights[k][i] = rho;
-                mean += r / sets;
+                const double rho = objective.lossWeight(r[k].squaredNorm());
+                at.residuals[k][i] = r[k].cast<float>();
+                at.weights[k][i] = float(rho);
+                mean += r[k] / sets;
                 for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                    at.jacobians[k][u.slotBegin + a] = j[a];
-                    addPackedGradient<P>(l.segment<P>(Eigen::Index(a) * P), rho / sets, j[a], r);
+                    addPackedGradient<P>(l.segment<P>(Eigen::Index(a) * P), rho / sets, j[a], r[k]);
                     for (std::uint32_t b = 0; u.seesMaterial && b < u.slotCount; ++b)
                         addPackedGram<P>(sum.gram.block<P, P>(where(a), where(b)), rho / sets, j[a],
                                          j[b]);
                 }
             }
             if (!u.seesMaterial) return;
-            sum.squares += mean.squaredNorm() / (u.weight * u.weight);
+            sum.squares += mean.squaredNorm() / std::pow(objective.weight(u), 2);
             for (std::uint32_t a = 0; a < u.slotCount; ++a)
                 for (std::uint32_t b = 0; b < u.slotCount; ++b)
                     sum.leastSquaresScores.block<P, P>(where(a), where(b)) +=
@@ -56,18 +57,16 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
             if (sets == 2) {
                 Eigen::VectorXd& c = scratch.cross;
                 c.setZero(Eigen::Index(u.slotCount) * P);
+                const std::vector<Jacobian>& ja = scratch.jacobians[0];
+                const std::vector<Jacobian>& jb = scratch.jacobians[1];
                 for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                    const Jacobian& ja = at.jacobians[0][u.slotBegin + a];
-                    const Jacobian& jb = at.jacobians[1][u.slotBegin + a];
-                    addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, ja,
-                                         at.residuals[1][i]);
-                    addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, jb,
-                                         at.residuals[0][i]);
+                    addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, ja[a], r[1]);
+                    addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, jb[a], r[0]);
                     for (std::uint32_t b = 0; b < u.slotCount; ++b) {
-                        addPackedGram<P>(sum.crossGram.block<P, P>(where(a), where(b)), 0.5, ja,
-                                         at.jacobians[1][u.slotBegin + b]);
-                        addPackedGram<P>(sum.crossGram.block<P, P>(where(a), where(b)), 0.5, jb,
-                                         at.jacobians[0][u.slotBegin + b]);
+                        addPackedGram<P>(sum.crossGram.block<P, P>(where(a), where(b)), 0.5, ja[a],
+                                         jb[b]);
+                        addPackedGram<P>(sum.crossGram.block<P, P>(where(a), where(b)), 0.5, jb[a],
+                                         ja[b]);
                     }
                 }
                 for (std::uint32_t a = 0; a < u.slotCount; ++a)
@@ -77,7 +76,8 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
                             c.segment<P>(Eigen::Index(b) * P).transpose();
             }
             if (!moments) return;
-            pixelMoment<P>(at, instruments, sets, i, u, scratch.moment, &scratch.momentJacobian);
+            pixelMoment<P>(at, &scratch.jacobians, instruments, sets, i, u, scratch.moment,
+                           &scratch.momentJacobian);
             for (std::uint32_t a = 0; a < u.slotCount; ++a)
                 for (std::uint32_t b = 0; b < u.slotCount; ++b)
                     sum.jacobian.block<P, P>(where(a), where(b)) +=

@@ -55,7 +55,7 @@ Analysis RoundSolver<P>::solveLeastSquares(RoundOutcome& out) {
             (!weightPoint.empty() && withinTolerance<P>(weightPoint, params_.naturalBlocks(),
                                                         noStd(params_.blockCount(), P), options_)))
             return analysis;
-        leastSquaresWeights_ = at_.weights[0];
+        leastSquaresWeights_.assign(at_.weights[0].begin(), at_.weights[0].end());
         weightPoint = params_.naturalBlocks();
     }
 }

@@ -128,6 +128,10 @@ struct FitOptions {
     // round's time says would end past it, and a solve under way at the limit stops there; the
     // first round always runs. The result then says "time budget".
     double timeBudget = 0;
+    // Bytes the whole process may hold (0: what the machine has available). A recording fit
+    // that cannot fit its first round fails before recording (Error); no later round starts
+    // whose paths, forecast from the last round's, would not fit: the result then says "memory".
+    std::size_t memoryLimit = 0;
     // Target relative standard error of every free parameter (kd, ks: std / max(value, 0.1); n:
     // std / n), 0 for none. Once the estimate has stopped moving and a parameter is less precise,
     // the next rounds record more paths (PathRecorder's pathFactor) until the target is met
@@ -159,12 +163,15 @@ struct FitResult {
     // met" (they were spent after the estimate had stopped moving), "sharper lobe" (they were
     // spent as a round recorded at a sharper lobe moved the estimate there, or the last round, a
     // probe, did not come back to the estimate reported: sharper_probe.h), "time budget"
-    // (FitOptions::timeBudget) or "interrupted".
+    // (FitOptions::timeBudget), "memory" (FitOptions::memoryLimit) or "interrupted".
     std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
     std::size_t pixelsUsed = 0;
     std::map<std::string, std::size_t> pixelsLeftOut;  // last round, by reason
+    // The process' resident bytes when the rounds began (scene, images and renderer loaded); the
+    // rounds' peakMemoryBytes count from then on (earlier peaks are forgotten where Linux allows).
+    std::size_t residentAtStartBytes = 0;
 };
 
 // Records the path set of `view` at the estimate `theta0` (indexed by slot). It is called twice per

@@ -35,27 +35,31 @@ struct InstrumentSums {
     }
 };
 
-// body(entry in UsedPixels::slots, pixel, used pixel) for the used pixels of `view` that list
-// `slot`.
-template <typename Body>
-void forEachEntry(const UsedPixels& prep, std::size_t view, int slot, const Body& body) {
-    for (const UsedPixel& u : prep.pixels) {
-        if (u.view != view) continue;
-        for (std::uint32_t a = 0; a < u.slotCount; ++a)
-            if (prep.slots[u.slotBegin + a] == std::uint32_t(slot))
-                body(u.slotBegin + a, std::size_t(u.pixel), u);
-    }
-}
-
 }  // namespace
 
 template <int P>
 void Instruments<P>::adopt(Objective<P>& objective, const Linearization<P>& at) {
     const UsedPixels& prep = objective.pixels();
     const int sets = objective.setCount();
-    for (int k = 0; k < sets; ++k) instruments_[k] = smoothed(objective, at.jacobians[k]);
+    // The old instruments are not needed to make the new: released first.
+    instruments_ = {};
+    weights_ = {};
+    for (int k = 0; k < sets; ++k) {
+        // The Jacobians at `at`, replayed, of the pixels that see a material (the others count
+        // as 0 in the smoothing).
+        std::vector<StoredJacobian> own(prep.slots.size(), StoredJacobian::Zero());
+        objective.sumPixels(prep.seeingMaterial, 0,
+                            [&](std::size_t i, int&, typename Objective<P>::Scratch& scratch) {
+                                const UsedPixel& u = prep.pixels[i];
+                                objective.residual(k, u, at.y.data(), scratch, true);
+                                for (std::uint32_t a = 0; a < u.slotCount; ++a)
+                                    own[u.slotBegin + a] =
+                                        storeJacobian<P>(scratch.jacobians[k][a]);
+                            });
+        instruments_[k] = smoothedJacobians(prep, own, objective.arena());
+    }
     weights_ = at.weights;
-    const std::vector<double> precision = residualPrecisions(prep, at.residuals);
+    const std::vector<float> precision = residualPrecisions(prep, at.residuals);
     for (int k = 0; k < sets; ++k)
         for (std::size_t i = 0; i < precision.size(); ++i) weights_[k][i] *= precision[i];
     const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
@@ -68,12 +72,13 @@ void Instruments<P>::adopt(Objective<P>& objective, const Linearization<P>& at) 
             for (int k = 0; k < sets; ++k)
                 for (std::uint32_t a = 0; a < u.slotCount; ++a)
                     for (std::uint32_t b = 0; b < u.slotCount; ++b)
-                        sum.gram.template block<P, P>(Eigen::Index(slots[a]) * P,
-                                                      Eigen::Index(slots[b]) * P) +=
-                            weights_[k][i] / sets * instruments_[k][u.slotBegin + a].transpose() *
-                            instruments_[k][u.slotBegin + b];
+                        addPackedGram<P>(sum.gram.template block<P, P>(Eigen::Index(slots[a]) * P,
+                                                                       Eigen::Index(slots[b]) * P),
+                                         double(weights_[k][i]) / sets,
+                                         loadJacobian<P>(instruments_[k][u.slotBegin + a]),
+                                         loadJacobian<P>(instruments_[k][u.slotBegin + b]));
             if (u.seesMaterial) return;
-            pixelMoment<P>(at, this, sets, i, u, scratch.moment, nullptr);
+            pixelMoment<P>(at, nullptr, this, sets, i, u, scratch.moment, nullptr);
             for (std::uint32_t a = 0; a < u.slotCount; ++a)
                 sum.constantMoments.template segment<P>(Eigen::Index(slots[a]) * P) +=
                     scratch.moment.template segment<P>(Eigen::Index(a) * P);
@@ -100,7 +105,7 @@ void Instruments<P>::momentSums(Objective<P>& objective, const double* y, Eigen:
                 const Eigen::Vector3d r = objective.residual(k, u, y, scratch, withJacobian);
                 const double w = weights_[other][i];
                 for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                    const Jacobian z = w * instruments_[other][u.slotBegin + a];
+                    const Jacobian z = w * loadJacobian<P>(instruments_[other][u.slotBegin + a]);
                     const Eigen::Index row = Eigen::Index(slots[a]) * P;
                     addPackedGradient<P>(sum.g.template segment<P>(row), 1.0, z, r);
                     if (!withJacobian) continue;
@@ -130,65 +135,51 @@ Eigen::MatrixXd Instruments<P>::whitening(const std::vector<int>& free) const {
     return llt.matrixL().solve(Eigen::MatrixXd(scale.asDiagonal()));
 }
 
-// Jacobians averaged over the (2 kInstrumentRadius + 1)^2 pixels around each pixel (pixels not
-// used count as 0): a few samples make a pixel's Jacobian as noisy as its value, and instruments
-// that noisy cost the estimate precision.
-template <int P>
-std::vector<typename Instruments<P>::Jacobian> Instruments<P>::smoothed(
-    Objective<P>& objective, const std::vector<Jacobian>& jacobians) const {
-    const UsedPixels& prep = objective.pixels();
-    std::vector<Jacobian> out(jacobians.size(), Jacobian::Zero());
-    for (std::size_t view = 0; view < prep.widths.size(); ++view) {
-        const int width = prep.widths[view], height = prep.heights[view];
-        const std::size_t pixels = std::size_t(width) * std::size_t(height);
-        std::vector<Jacobian> image, rows(pixels);
-        for (int s = 0; s < objective.blocks(); ++s) {
-            if (!prep.slotSeen[s]) continue;
-            image.assign(pixels, Jacobian::Zero());
-            forEachEntry(prep, view, s, [&](std::size_t entry, std::size_t p, const UsedPixel& u) {
-                if (u.seesMaterial) image[p] = jacobians[entry];
-            });
-            // A separable box filter: rows, then columns.
-            objective.arena().execute([&] {
-                tbb::parallel_for(0, height, [&](int y) {
-                    for (int x = 0; x < width; ++x) {
-                        Jacobian sum = Jacobian::Zero();
-                        for (int xx = std::max(x - kInstrumentRadius, 0);
-                             xx <= std::min(x + kInstrumentRadius, width - 1); ++xx)
-                            sum += image[std::size_t(y) * width + xx];
-                        rows[std::size_t(y) * width + x] = sum;
+std::vector<StoredJacobian> smoothedJacobians(const UsedPixels& prep,
+                                              const std::vector<StoredJacobian>& jacobians,
+                                              tbb::task_arena& arena) {
+    std::vector<StoredJacobian> out(jacobians.size());
+    arena.execute([&] {
+        tbb::parallel_for(std::size_t(0), prep.pixels.size(), [&](std::size_t i) {
+            const UsedPixel& u = prep.pixels[i];
+            const int width = prep.widths[u.view], height = prep.heights[u.view];
+            const int x = int(u.pixel % std::uint32_t(width)),
+                      y = int(u.pixel / std::uint32_t(width));
+            const int x0 = std::max(x - kInstrumentRadius, 0),
+                      x1 = std::min(x + kInstrumentRadius, width - 1);
+            const int y0 = std::max(y - kInstrumentRadius, 0),
+                      y1 = std::min(y + kInstrumentRadius, height - 1);
+            const double count = double((x1 - x0 + 1) * (y1 - y0 + 1));
+            for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+                const std::uint32_t slot = prep.slots[u.slotBegin + a];
+                Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+                for (int yy = y0; yy <= y1; ++yy)
+                    for (int xx = x0; xx <= x1; ++xx) {
+                        const std::int32_t q =
+                            prep.index[u.view][std::size_t(yy) * std::size_t(width) + xx];
+                        if (q < 0 || !prep.pixels[std::size_t(q)].seesMaterial) continue;
+                        const std::span<const std::uint32_t> slots =
+                            prep.slotsOf(prep.pixels[std::size_t(q)]);
+                        const auto b = std::lower_bound(slots.begin(), slots.end(), slot);
+                        if (b == slots.end() || *b != slot) continue;
+                        sum += jacobians[prep.pixels[std::size_t(q)].slotBegin +
+                                         std::size_t(b - slots.begin())]
+                                   .cast<double>();
                     }
-                });
-                tbb::parallel_for(0, width, [&](int x) {
-                    for (int y = 0; y < height; ++y) {
-                        Jacobian sum = Jacobian::Zero();
-                        for (int yy = std::max(y - kInstrumentRadius, 0);
-                             yy <= std::min(y + kInstrumentRadius, height - 1); ++yy)
-                            sum += rows[std::size_t(yy) * width + x];
-                        image[std::size_t(y) * width + x] = sum;
-                    }
-                });
-            });
-            forEachEntry(prep, view, s, [&](std::size_t entry, std::size_t p, const UsedPixel&) {
-                const int x = int(p % std::size_t(width)), y = int(p / std::size_t(width));
-                const int count = (std::min(x + kInstrumentRadius, width - 1) -
-                                   std::max(x - kInstrumentRadius, 0) + 1) *
-                                  (std::min(y + kInstrumentRadius, height - 1) -
-                                   std::max(y - kInstrumentRadius, 0) + 1);
-                out[entry] = image[p] / count;
-            });
-        }
-    }
+                out[u.slotBegin + a] = (sum / count).cast<float>();
+            }
+        });
+    });
     return out;
 }
 
-std::vector<double> residualPrecisions(
-    const UsedPixels& prep, const std::array<std::vector<Eigen::Vector3d>, 2>& residuals) {
+std::vector<float> residualPrecisions(
+    const UsedPixels& prep, const std::array<std::vector<Eigen::Vector3f>, 2>& residuals) {
     const std::size_t count = prep.pixels.size();
-    std::vector<double> d(count), precision(count);
+    std::vector<float> d(count), precision(count);
     double mean = 0;
     for (std::size_t i = 0; i < count; ++i) {
-        d[i] = 0.5 * (residuals[0][i] - residuals[1][i]).squaredNorm();
+        d[i] = float(0.5 * (residuals[0][i] - residuals[1][i]).cast<double>().squaredNorm());
         mean += d[i] / double(count);
     }
     const double floor = std::max(1e-2 * mean, 1e-12 * prep.rmsObserved * prep.rmsObserved);
@@ -208,42 +199,44 @@ std::vector<double> residualPrecisions(
                 sum += d[std::size_t(q)];
                 ++n;
             }
-        precision[i] = 1 / ((n > 0 ? sum / n : mean) + floor);
+        precision[i] = float(1 / ((n > 0 ? sum / n : mean) + floor));
     }
     return precision;
 }
 
 template <int P>
-void pixelMoment(const Linearization<P>& at, const Instruments<P>* instruments, int sets,
-                 std::size_t i, const UsedPixel& u, Eigen::VectorXd& m, Eigen::MatrixXd* jacobian,
-                 double secondSign) {
+void pixelMoment(const Linearization<P>& at, const PixelJacobians<P>* own,
+                 const Instruments<P>* instruments, int sets, std::size_t i, const UsedPixel& u,
+                 Eigen::VectorXd& m, Eigen::MatrixXd* jacobian, double secondSign) {
     const bool instrumental = instruments != nullptr;
     const Eigen::Index n = Eigen::Index(u.slotCount) * P;
     m.setZero(n);
     if (jacobian != nullptr) jacobian->setZero(n, n);
     for (int k = 0; k < sets; ++k) {
         const int other = instrumental ? 1 - k : k;
-        const std::vector<Eigen::Matrix<double, 3, P>>& z =
-            instrumental ? instruments->instruments(other) : at.jacobians[k];
         const double w = instrumental ? instruments->weights(other)[i] : at.weights[k][i];
         const double sign = k == 1 ? secondSign : 1.0;
         for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-            const Eigen::Matrix<double, 3, P>& za = z[u.slotBegin + a];
+            const Eigen::Matrix<double, 3, P> za =
+                instrumental ? loadJacobian<P>(instruments->instruments(other)[u.slotBegin + a])
+                             : (*own)[k][a];
             addPackedGradient<P>(m.segment<P>(Eigen::Index(a) * P), sign * w, za,
-                                 at.residuals[k][i]);
+                                 at.residuals[k][i].template cast<double>());
             for (std::uint32_t b = 0; jacobian != nullptr && b < u.slotCount; ++b)
                 addPackedGram<P>(jacobian->block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P), w,
-                                 za, at.jacobians[k][u.slotBegin + b]);
+                                 za, (*own)[k][b]);
         }
     }
 }
 
 template class Instruments<kRgbBlock>;
 template class Instruments<kGreyBlock>;
-template void pixelMoment<kRgbBlock>(const Linearization<kRgbBlock>&, const Instruments<kRgbBlock>*,
-                                     int, std::size_t, const UsedPixel&, Eigen::VectorXd&,
-                                     Eigen::MatrixXd*, double);
+template void pixelMoment<kRgbBlock>(const Linearization<kRgbBlock>&,
+                                     const PixelJacobians<kRgbBlock>*,
+                                     const Instruments<kRgbBlock>*, int, std::size_t,
+                                     const UsedPixel&, Eigen::VectorXd&, Eigen::MatrixXd*, double);
 template void pixelMoment<kGreyBlock>(const Linearization<kGreyBlock>&,
+                                      const PixelJacobians<kGreyBlock>*,
                                       const Instruments<kGreyBlock>*, int, std::size_t,
                                       const UsedPixel&, Eigen::VectorXd&, Eigen::MatrixXd*, double);
 

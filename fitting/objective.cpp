@@ -25,11 +25,13 @@ Objective<P>::Objective(const std::vector<Observation>& observations,
                         const std::vector<PathSet>& first, const std::vector<PathSet>& second,
                         bool instrumental, int radius, int blocks, const ExposureBlock& exposure,
                         const FitOptions& options, int threads)
-    : blocks_(blocks),
+    : observations_(&observations),
+      blocks_(blocks),
       exposure_(exposure),
-      paths_(first, second),
-      sets_(paths_.sets(instrumental)),
-      prep_(selectUsedPixels(observations, sets_, blocks, radius, exposure)),
+      recordings_{&first, &second},
+      instrumental_(instrumental),
+      prep_(selectUsedPixels(observations, &first == &second ? SetLists{&first} : recordings_,
+                             blocks, radius, exposure)),
       loss_(makeLoss(options, prep_.meanObserved)),
       arena_(threads) {}
 
@@ -43,8 +45,22 @@ double Objective<P>::lossWeight(double squaredNorm) const {
 template <int P>
 Eigen::Vector3d Objective<P>::residual(int k, const UsedPixel& u, const double* y, Scratch& scratch,
                                        bool jacobians) const {
-    return residual((*sets_[k])[u.view], u, y, scratch,
+    if (!instrumental_) return pooledResidual(u, y, scratch, jacobians);
+    return residual((*recordings_[k])[u.view], u, y, scratch,
                     jacobians ? &scratch.jacobians[k] : nullptr);
+}
+
+template <int P>
+Eigen::Vector3d Objective<P>::pooledResidual(const UsedPixel& u, const double* y, Scratch& scratch,
+                                             bool jacobians) const {
+    std::vector<Jacobian>* ja = jacobians ? &scratch.jacobians[0] : nullptr;
+    const Eigen::Vector3d ra = residual((*recordings_[0])[u.view], u, y, scratch, ja);
+    if (recordings_[0] == recordings_[1]) return ra;
+    std::vector<Jacobian>* jb = jacobians ? &scratch.jacobians[1] : nullptr;
+    const Eigen::Vector3d rb = residual((*recordings_[1])[u.view], u, y, scratch, jb);
+    for (std::uint32_t a = 0; jacobians && a < u.slotCount; ++a)
+        (*ja)[a] = 0.5 * ((*ja)[a] + (*jb)[a]);
+    return 0.5 * (ra + rb);
 }
 
 // The exposure's block, the last of a pixel's when it is fitted, is not replayed: the prediction
@@ -58,6 +74,7 @@ Eigen::Vector3d Objective<P>::residual(const PathSet& paths, const UsedPixel& u,
         exposure_.fitted() && !slots.empty() && slots.back() == std::uint32_t(exposure_.slot());
     const std::span<const std::uint32_t> materials = slots.first(slots.size() - exposed);
     const double s = exposure_.value<P>(y);
+    const double w = weight(u);
     Color3 predicted = Color3::Zero();
     if (jacobians != nullptr) jacobians->resize(u.slotCount);
     if (jacobians != nullptr && !materials.empty()) {
@@ -65,7 +82,7 @@ Eigen::Vector3d Objective<P>::residual(const PathSet& paths, const UsedPixel& u,
         for (std::size_t b = 0; b < materials.size(); ++b) {
             predicted = replayNaturalJacobian<P>(paths, u.pixel, materials, y, materials[b],
                                                  scratch.jets, j[b]);
-            j[b] *= u.weight * s;
+            j[b] *= w * s;
         }
     } else {
         for (std::uint32_t m : materials)
@@ -75,9 +92,9 @@ Eigen::Vector3d Objective<P>::residual(const PathSet& paths, const UsedPixel& u,
     if (jacobians != nullptr && exposed) {
         Jacobian& j = (*jacobians)[u.slotCount - 1];
         j.setZero();
-        j.col(L::kLogN) = u.weight * s * predicted.matrix();
+        j.col(L::kLogN) = w * s * predicted.matrix();
     }
-    return (u.weight * (s * predicted - u.observed)).matrix();
+    return (w * (s * predicted - pixelObserved((*observations_)[u.view], u.pixel))).matrix();
 }
 
 namespace {
@@ -106,7 +123,6 @@ void Objective<P>::leastSquaresSums(const double* y, const std::vector<double>& 
     const bool withJacobian = gradient != nullptr;
     const NormalSums zero{0.0, withJacobian ? Eigen::VectorXd::Zero(size) : Eigen::VectorXd(),
                           withJacobian ? Eigen::MatrixXd::Zero(size, size) : Eigen::MatrixXd()};
-    const std::vector<PathSet>& replayed = cross ? paths_.first() : paths_.leastSquaresSets();
     NormalSums sums = sumPixels(
         prep_.seeingMaterial, zero, [&](std::size_t i, NormalSums& sum, Scratch& scratch) {
             const UsedPixel& u = prep_.pixels[i];
@@ -134,9 +150,8 @@ void Objective<P>::leastSquaresSums(const double* y, const std::vector<double>& 
                 }
                 return;
             }
-            std::vector<Jacobian>& j = scratch.jacobians[0];
-            const Eigen::Vector3d r =
-                residual(replayed[u.view], u, y, scratch, withJacobian ? &j : nullptr);
+            const Eigen::Vector3d r = pooledResidual(u, y, scratch, withJacobian);
+            const std::vector<Jacobian>& j = scratch.jacobians[0];
             sum.squares += w * r.squaredNorm();
             if (!withJacobian) return;
             const std::span<const std::uint32_t> slots = prep_.slotsOf(u);

@@ -49,12 +49,13 @@ public:
     Objective(const std::vector<Observation>& observations, const std::vector<PathSet>& first,
               const std::vector<PathSet>& second, bool instrumental, int radius, int blocks,
               const ExposureBlock& exposure, const FitOptions& options, int threads);
-    Objective(const Objective&) = delete;  // sets_ points into paths_
-    Objective& operator=(const Objective&) = delete;
 
     const UsedPixels& pixels() const { return prep_; }
+    double weight(const UsedPixel& u) const {
+        return pixelWeight((*observations_)[u.view], u.pixel);
+    }
     int blocks() const { return blocks_; }
-    int setCount() const { return int(sets_.size()); }
+    int setCount() const { return instrumental_ ? 2 : 1; }
     const ExposureBlock& exposure() const { return exposure_; }
     tbb::task_arena& arena() { return arena_; }
     bool robust() const { return loss_ != nullptr; }  // FitOptions::loss is not L2
@@ -63,9 +64,15 @@ public:
     double lossWeight(double squaredNorm) const;
 
     // The weighted residual of pixel u in set k at flat natural coordinates y; with `jacobians`,
-    // also its weighted Jacobians per slot of the pixel, in scratch.jacobians[k].
+    // also its weighted Jacobians per slot of the pixel, in scratch.jacobians[k]. The
+    // instrumental sets are the two recordings; least squares' one set is their pool.
     Eigen::Vector3d residual(int k, const UsedPixel& u, const double* y, Scratch& scratch,
                              bool jacobians) const;
+    // The residual of the recordings' pool (both recordings' paths at half weight: the mean of
+    // their predictions, so it is replayed as that, not kept as a third copy of the paths), its
+    // Jacobians in scratch.jacobians[0]. Exact, noise-free recordings are their own pool.
+    Eigen::Vector3d pooledResidual(const UsedPixel& u, const double* y, Scratch& scratch,
+                                   bool jacobians) const;
     // The same in `paths`, Jacobians (if not null) into `jacobians`.
     Eigen::Vector3d residual(const PathSet& paths, const UsedPixel& u, const double* y,
                              Scratch& scratch, std::vector<Jacobian>* jacobians) const;
@@ -97,10 +104,12 @@ public:
     double crossScale(const double* y, const std::vector<double>& weights);
 
 private:
+    const std::vector<Observation>* observations_;
     int blocks_;
     ExposureBlock exposure_;
-    RoundPaths paths_;
-    SetLists sets_;
+    // The two recordings; exact, noise-free sets are passed as the same list twice.
+    SetLists recordings_;
+    bool instrumental_;
     UsedPixels prep_;
     std::unique_ptr<ceres::LossFunction> loss_;
     tbb::task_arena arena_;

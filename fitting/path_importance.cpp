@@ -15,10 +15,11 @@ namespace phongfit {
 
 namespace {
 
+// Floats, 8 bytes: one per pixel of a view while the fitter's paths are held.
 struct PixelSpread {
-    double sensitivity = 0;   // sum_k (J_pk std_k^2 / scale_k)^2
-    double pathVariance = 0;  // s_p^2, from this pixel alone
-    bool seen = false;
+    float sensitivity = 0;    // sqrt(sum_k (J_pk std_k^2 / scale_k)^2): a float's range holds it
+    float pathVariance = -1;  // s_p^2, from this pixel alone; negative where no path is seen
+    bool seen() const { return pathVariance >= 0; }
 };
 
 template <int P>
@@ -27,9 +28,10 @@ PixelSpread spread(const PathSet& a, const PathSet& b, std::uint32_t pixel,
                    const std::vector<double>& weights, std::vector<PhongParams<PackedJet>>& theta) {
     using L = BlockLayout<P>;
     PixelSpread s;
-    s.seen = a.pixelStart[pixel + 1] > a.pixelStart[pixel] ||
-             b.pixelStart[pixel + 1] > b.pixelStart[pixel];
-    if (!s.seen) return s;
+    if (a.pixelStart[pixel + 1] == a.pixelStart[pixel] &&
+        b.pixelStart[pixel + 1] == b.pixelStart[pixel])
+        return s;
+    double sensitivity = 0;
     Eigen::Matrix<double, 3, P> ja, jb;
     Color3 ia = Color3::Zero(), ib = Color3::Zero();
     for (std::uint32_t seeded : slots) {
@@ -39,11 +41,12 @@ PixelSpread spread(const PathSet& a, const PathSet& b, std::uint32_t pixel,
         for (int c = 0; c < 3; ++c)
             for (int k : {L::diffuse(L::group(c)), L::specular(L::group(c)), int(L::kLogN)}) {
                 const double term = 0.5 * (ja(c, k) + jb(c, k)) * w[k];
-                s.sensitivity += term * term;
+                sensitivity += term * term;
             }
     }
     const double paths = a.pixelPaths.empty() ? a.spp : a.pixelPaths[pixel];
-    s.pathVariance = 0.5 * paths * (ia - ib).matrix().squaredNorm();
+    s.sensitivity = float(std::sqrt(sensitivity));
+    s.pathVariance = float(0.5 * paths * (ia - ib).matrix().squaredNorm());
     return s;
 }
 
@@ -81,7 +84,8 @@ std::vector<std::vector<float>> pathImportance(const std::vector<Observation>& o
                     if (!o.valid.empty() && !o.valid[p]) continue;
                     PixelSpread& s = spreads[p];
                     s = spread<P>(first[v], second[v], p, allSlots, natural, weights, theta);
-                    if (!o.weight.empty()) s.sensitivity *= double(o.weight[p]) * o.weight[p];
+                    if (!o.weight.empty())
+                        s.sensitivity = float(s.sensitivity * std::abs(double(o.weight[p])));
                 }
             });
         });
@@ -90,7 +94,7 @@ std::vector<std::vector<float>> pathImportance(const std::vector<Observation>& o
             tbb::parallel_for(0, height, [&](int y) {
                 for (int x = 0; x < width; ++x) {
                     const std::size_t p = std::size_t(y) * width + x;
-                    if (!spreads[p].seen || !(spreads[p].sensitivity > 0)) continue;
+                    if (!spreads[p].seen() || !(spreads[p].sensitivity > 0)) continue;
                     double sum = 0;
                     int count = 0;
                     for (int dy = -kInstrumentRadius; dy <= kInstrumentRadius; ++dy)
@@ -98,12 +102,12 @@ std::vector<std::vector<float>> pathImportance(const std::vector<Observation>& o
                             const int nx = x + dx, ny = y + dy;
                             if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
                             const PixelSpread& n = spreads[std::size_t(ny) * width + nx];
-                            if (!n.seen) continue;
+                            if (!n.seen()) continue;
                             sum += n.pathVariance;
                             ++count;
                         }
                     importance[v][p] =
-                        float(std::sqrt(sum / count) * std::sqrt(spreads[p].sensitivity));
+                        float(std::sqrt(sum / count) * double(spreads[p].sensitivity));
                 }
             });
         });

@@ -1,7 +1,6 @@
 #include "rounds.h"
 
 #include <fmt/format.h>
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -12,6 +11,8 @@
 #include "convergence.h"
 #include "error.h"
 #include "fit_input.h"
+#include "memory_info.h"
+#include "memory_plan.h"
 #include "parameter_state.h"
 #include "path_importance.h"
 #include "precision_target.h"
@@ -47,12 +48,6 @@ Estimate estimateOf(const RoundOutcome& out, const Estimate& before, bool fitExp
     return e;
 }
 
-std::size_t peakResidentBytes() {
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    return std::size_t(usage.ru_maxrss) * 1024;  // kilobytes on Linux
-}
-
 // Per material and ks group (a channel, or the grey one): the rounds' scatter of ks; empty
 // without a scatter.
 template <int P>
@@ -68,6 +63,15 @@ std::vector<std::vector<double>> ksScatterFloor(const std::vector<MaterialScatte
                                                         ? scatter[std::size_t(s)].ks.maxCoeff()
                                                         : scatter[std::size_t(s)].ks[g];
     return least;
+}
+
+// Whether the next round, recording `growth` times the last round's paths, fits: its paths and
+// the state of the pixels the last round used.
+bool fitsMemory(const FitResult& result, double growth, std::size_t limit) {
+    const std::optional<std::size_t> available = fitMemoryAvailable(limit);
+    const double need = double(result.rounds.back().recordedBytes) * growth +
+                        double(kStateBytesPerPixel) * double(result.pixelsUsed);
+    return !available || need <= double(*available);
 }
 
 bool allResolved(const std::vector<MaterialFit>& materials) {
@@ -180,6 +184,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     const std::vector<PhongMaterial>& start, const FitOptions& options,
                     int maxRounds, bool rerecords) {
     const auto begin = std::chrono::steady_clock::now();
+    resetPeakResident();
+    const std::size_t residentAtStart = residentBytes();
     const int threads = options.threads > 0 ? options.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
     FitResult result;
@@ -201,15 +207,25 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // The converged estimate the last round's probe did not come back to, widened to the probe:
     // what the fit reports if it ends before another round.
     std::optional<FitResult> unvouched;
+    if (rerecords)
+        requireMemory(leastFirstRoundBytes(observations), fitMemoryAvailable(options.memoryLimit),
+                      fmt::format("the fit's first round ({} bytes of fit state and two "
+                                  "recordings of at least {} bytes for each pixel)",
+                                  kStateBytesPerPixel, kLeastRecordedBytesPerPixel));
     for (int round = 0; round < maxRounds; ++round) {
         result.stopReason = "rounds";
+        const char* cut = nullptr;  // what stops the rounds before this one
         if (round > 0 && options.timeBudget > 0 &&
-            secondsSince(begin) + growth * result.rounds.back().timeSeconds > options.timeBudget) {
+            secondsSince(begin) + growth * result.rounds.back().timeSeconds > options.timeBudget)
+            cut = "time budget";
+        else if (round > 0 && rerecords && !fitsMemory(result, growth, options.memoryLimit))
+            cut = "memory";
+        if (cut != nullptr) {
             if (unvouched) {
                 unvouched->rounds = std::move(result.rounds);
                 result = std::move(*unvouched);
             }
-            result.stopReason = "time budget";
+            result.stopReason = cut;
             break;
         }
         const auto roundBegin = std::chrono::steady_clock::now();
@@ -219,10 +235,13 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         exact = sets.first == sets.second;
         checkRoundSets(sets, observations, int(start.size()));
         // Later rounds start where the last one ended, near enough for the instruments.
-        RoundSolver<P> solver(observations, *sets.first, *sets.second, params, solveOptions,
-                              threads, round == 0);
+        // Its per-pixel state is freed once the round is solved, before the next importance and
+        // recording (docs/design/fitter.md, "Memory").
+        std::optional<RoundSolver<P>> solver;
+        solver.emplace(observations, *sets.first, *sets.second, params, solveOptions, threads,
+                       round == 0);
         const Estimate recorded = theta;
-        RoundOutcome out = solver.solve(theta);
+        RoundOutcome out = solver->solve(theta);
         // Round 0 recorded at the start, not at an estimate: its move is no difference between
         // two estimates, and its standard errors, of a replay far from where its paths were
         // recorded, are the least telling. Only the tolerance applies there.
@@ -252,8 +271,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 exact ? std::vector<std::vector<double>>{}
                       : ksScatterFloor<P>(roundScatter(result.rounds, &out.materials),
                                           params.materialCount());
-            solver.confirmLobes(out, ksFloor.empty() ? nullptr : &ksFloor);
+            solver->confirmLobes(out, ksFloor.empty() ? nullptr : &ksFloor);
         }
+        solver.reset();
 
         FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out);
         r.recordSeconds = recordSeconds;
@@ -328,7 +348,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // Stopped while the estimate still moved (a probe left unvouched has its own widening).
         const std::string& why = result.stopReason;
         if (!result.converged && !result.rounds.empty() && !result.rounds.back().probe &&
-            (why == "rounds" || why == "time budget" || why == "interrupted" ||
+            (why == "rounds" || why == "time budget" || why == "memory" || why == "interrupted" ||
              why == "sharper lobe"))
             widenToDrift(result);
         // A converged estimate whose rounds scatter by as much as a parameter is not resolved.
@@ -339,6 +359,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         }
     }
     result.timeSeconds = secondsSince(begin);
+    result.residentAtStartBytes = residentAtStart;
     return result;
 }
 

@@ -26,9 +26,14 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
             indices.clear();
             for (std::uint32_t s : slots)
                 for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
-            // A pixel that sees no material does not pull on the estimate.
-            pixelMoment<P>(at, instruments, sets, i, u, scratch.moment,
-                           u.seesMaterial ? &scratch.momentJacobian : nullptr, secondSign);
+            // A pixel that sees no material does not pull on the estimate. Its Jacobians at `at`
+            // are replayed (Linearization does not keep them).
+            const bool replay = u.seesMaterial || instruments == nullptr;
+            for (int k = 0; replay && k < sets; ++k)
+                objective.residual(k, u, at.y.data(), scratch, true);
+            pixelMoment<P>(at, replay ? &scratch.jacobians : nullptr, instruments, sets, i, u,
+                           scratch.moment, u.seesMaterial ? &scratch.momentJacobian : nullptr,
+                           secondSign);
             const Eigen::VectorXd m =
                 u.seesMaterial ? leaveOneOutScore(scratch.momentJacobian, inverse(indices, indices),
                                                   scratch.moment)

@@ -15,6 +15,9 @@ bool finite(const Color<float>& c) { return c.allFinite(); }
 
 UsedPixels selectUsedPixels(const std::vector<Observation>& observations, const SetLists& sets,
                             int slots, int radius, const ExposureBlock& exposure) {
+    if (slots > kMaxSlots)
+        throw Error(
+            fmt::format("{} fitted materials; at most {} can be fitted at once", slots, kMaxSlots));
     const int exposureSlot = exposure.slot();
     UsedPixels prep;
     prep.slotSeen.assign(slots, false);
@@ -81,14 +84,11 @@ UsedPixels selectUsedPixels(const std::vector<Observation>& observations, const 
             }
             std::sort(used.begin(), used.end());
             used.erase(std::unique(used.begin(), used.end()), used.end());
-            const double weight = obs.weight.empty() ? 1.0 : obs.weight[p];
             UsedPixel u;
             u.view = std::uint32_t(view);
             u.pixel = std::uint32_t(p);
             u.slotBegin = std::uint32_t(prep.slots.size());
-            u.slotCount = std::uint32_t(used.size());
-            u.observed = Color3(obs.rgb[3 * p], obs.rgb[3 * p + 1], obs.rgb[3 * p + 2]);
-            u.weight = weight;
+            u.slotCount = std::uint16_t(used.size());
             u.seesMaterial = ownStart[p + 1] > ownStart[p];
             for (std::uint32_t s : used) prep.slotSeen[s] = true;
             prep.index.back()[p] = std::int32_t(prep.pixels.size());
@@ -96,10 +96,14 @@ UsedPixels selectUsedPixels(const std::vector<Observation>& observations, const 
             prep.pixels.push_back(u);
             if (!u.seesMaterial) continue;
             ++prep.seeingMaterial;
-            sum += u.observed.sum();
-            sumSquares += weight * weight * u.observed.square().sum();
+            const Color3 observed = pixelObserved(obs, u.pixel);
+            sum += observed.sum();
+            const double weight = pixelWeight(obs, u.pixel);
+            sumSquares += weight * weight * observed.square().sum();
         }
     }
+    prep.pixels.shrink_to_fit();
+    prep.slots.shrink_to_fit();
     std::stable_partition(prep.pixels.begin(), prep.pixels.end(),
                           [](const UsedPixel& u) { return u.seesMaterial; });
     for (std::size_t i = 0; i < prep.pixels.size(); ++i)

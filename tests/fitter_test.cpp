@@ -842,6 +842,43 @@ TEST(Fitter, StopRequestEndsTheFitAfterTheRoundUnderWayWithItsEstimate) {
     EXPECT_EQ(full.rounds.size(), 10u);
 }
 
+// A fit whose first round cannot fit in FitOptions::memoryLimit fails before it records, naming
+// what it needs; a round whose paths would not fit is not started, and the fit says why.
+TEST(Fitter, MemoryLimitRefusesTheFirstRoundAndStopsBeforeARoundThatWouldNotFit) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    int recordings = 0;
+    const PathRecorder noisy = noisyRecorder(scene, 300);
+    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta,
+                                    int recording, const std::vector<float>& importance,
+                                    double factor) {
+        ++recordings;
+        return noisy(view, theta, recording, importance, factor);
+    };
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    FitOptions options;
+    options.stdTolerance = 0;  // noise alone would keep the rounds going
+    options.maxRounds = 4;
+    options.memoryLimit = 1;  // less than the process already holds
+    try {
+        fitMaterials({obs}, record, {start}, options);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("first round"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("MB are available"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(recordings, 0);
+
+    options.memoryLimit = 0;  // what the machine has; after the first round, nothing
+    options.onRound = [&](const FitRound&) { options.memoryLimit = 1; };
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    expectFinite(r);
+    EXPECT_EQ(r.rounds.size(), 1u);
+    EXPECT_EQ(recordings, 2);
+    EXPECT_EQ(r.stopReason, "memory");
+    EXPECT_FALSE(r.converged);
+}
+
 TEST(Fitter, InstrumentalVariablesRemoveTheAttenuationOfNoisyPathSets) {
     SphereScene scene = threeLights();
     scene.size = 160;

@@ -2,10 +2,12 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include "atomic_file.h"
 #include "error.h"
+#include "memory_plan.h"
 
 namespace phongfit {
 namespace {
@@ -33,6 +35,24 @@ nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
 
 nlohmann::json exposureJson(const ExposureFit& e) {
     return {{"value", e.value}, {"std", e.std}, {"unconstrained", e.unconstrained}};
+}
+
+// The fit's peak against what it holds: the process at the start, the recorded paths, and per
+// used pixel the rest (at most kStateBytesPerPixel by design; it also counts anything else the
+// process allocated meanwhile).
+nlohmann::json memoryJson(const FitResult& result) {
+    std::size_t peak = 0, recorded = 0;
+    for (const FitRound& r : result.rounds) {
+        peak = std::max(peak, r.peakMemoryBytes);
+        recorded = std::max(recorded, r.recordedBytes);
+    }
+    const double rest = double(peak) - double(result.residentAtStartBytes) - double(recorded);
+    return {{"peak_bytes", peak},
+            {"resident_at_start_bytes", result.residentAtStartBytes},
+            {"most_recorded_bytes", recorded},
+            {"rest_per_used_pixel_bytes",
+             result.pixelsUsed > 0 ? std::max(rest, 0.0) / double(result.pixelsUsed) : 0.0},
+            {"state_bound_per_used_pixel_bytes", kStateBytesPerPixel}};
 }
 
 }  // namespace
@@ -65,6 +85,7 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
                           {"pixels_used", result.pixelsUsed},
                           {"pixels_left_out", result.pixelsLeftOut}};
     if (result.exposure) out["exposure"] = exposureJson(*result.exposure);
+    out["memory"] = memoryJson(result);
     return out;
 }
 

@@ -34,7 +34,7 @@ struct FitCli {
     std::vector<std::string> views, materials, defines;
     std::string kd, ks;
     std::optional<double> n;
-    double timeBudget = 0, precision = kDefaultPrecision;
+    double timeBudget = 0, precision = kDefaultPrecision, maxMemory = 0;
     int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
     bool fitExposure = false, ignoreNonFinite = false;
     std::uint64_t seed = 0;
@@ -76,6 +76,7 @@ void runSceneFit(const FitCli& a) {
     options.fitExposure = a.fitExposure;
     options.maxRounds = a.rounds;
     options.timeBudget = a.timeBudget;
+    options.memoryLimit = std::size_t(a.maxMemory * 1e9);
     options.precision = a.precision;
     requireOutputDirectory(a.output);
     for (const std::string& spec : a.views) {
@@ -277,6 +278,12 @@ void addFitCommand(CLI::App& app) {
         ->add_option("--time-budget", a->timeBudget,
                      "seconds the fit may take, recording included: no round starts that would "
                      "end past it (the first always runs); the report then says not converged")
+        ->check(CLI::NonNegativeNumber);
+    scene
+        ->add_option("--max-memory", a->maxMemory,
+                     "gigabytes the fit may hold (default: what the machine has available): a fit "
+                     "whose first round cannot fit fails before recording, and no round starts "
+                     "whose paths would not fit (the report then says not converged)")
         ->check(CLI::NonNegativeNumber);
     scene
         ->add_option("--precision", a->precision,

@@ -14,6 +14,8 @@ namespace {
 
 std::string notConvergedBecause(const FitResult& result) {
     if (result.stopReason == "time budget") return "the time budget was spent";
+    if (result.stopReason == "memory")
+        return "the next round's paths would not fit in the memory left (--max-memory)";
     if (result.stopReason == "interrupted") return "interrupted";
     if (result.stopReason == "precision not met")
         return fmt::format(

@@ -1,5 +1,7 @@
 // The phongfit command line: each module adds its subcommand; errors become one line and exit 1.
 // SIGINT/SIGTERM are caught here, once: the libraries only poll interruptRequested().
+#include <malloc.h>
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
@@ -9,6 +11,10 @@
 #include "interrupt.h"
 
 int main(int argc, char** argv) {
+    // Buffers of a megabyte or more (recorded paths, a fit's per-pixel state) are mapped and
+    // unmapped whole: glibc's adaptive threshold would serve them from the heap after the first is
+    // freed, and keep them resident once freed (docs/design/fitter.md, "Memory").
+    mallopt(M_MMAP_THRESHOLD, 1 << 20);
     CLI::App app{
         "phongfit: recover Modified Phong BRDF parameters from images, and render with them"};
     app.require_subcommand(1);

@@ -6,6 +6,7 @@
 #include <ImfOutputFile.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -140,6 +141,18 @@ TEST_F(FitCommand, TimeBudgetStopsTheRoundsAndSaysSo) {
               std::string::npos)
         << once.out;
     EXPECT_EQ(nlohmann::json::parse(std::ifstream(path("once/fit.json")))["stop_reason"], "rounds");
+}
+
+// --max-memory below what the process holds: the fit fails before recording, with one line saying
+// what it needs and what is available, and writes no report.
+TEST_F(FitCommand, MaxMemoryTooSmallFailsBeforeRecording) {
+    const auto r = run({"fit", "--view", kSphere + ":" + path("sphere.exr"), "--material", "sphere",
+                        "--max-memory", "0.001", "-o", path("no_memory"), "--quiet"});
+    EXPECT_NE(r.exitCode, 0);
+    EXPECT_NE(r.err.find("the fit's first round"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("MB are available"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(path("no_memory/fit.json")));
 }
 
 void writeExrWithNan(const std::string& file) {

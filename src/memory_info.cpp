@@ -1,0 +1,66 @@
+#include "memory_info.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <fstream>
+#include <limits>
+#include <string>
+
+namespace phongfit {
+
+namespace {
+
+// The first number of a one-line file ("max" and unreadable files give nothing).
+bool readNumber(const char* path, std::size_t& value) {
+    std::ifstream in(path);
+    std::string word;
+    if (!(in >> word) || word.empty() || word.find_first_not_of("0123456789") != std::string::npos)
+        return false;
+    value = std::stoull(word);
+    return true;
+}
+
+}  // namespace
+
+std::size_t residentBytes() {
+    std::ifstream in("/proc/self/statm");
+    std::size_t size = 0, resident = 0;
+    if (!(in >> size >> resident)) return 0;
+    return resident * std::size_t(sysconf(_SC_PAGESIZE));
+}
+
+std::size_t peakResidentBytes() {
+    std::ifstream status("/proc/self/status");
+    std::string key;
+    while (status >> key) {
+        if (key == "VmHWM:") {
+            std::size_t kb = 0;
+            return status >> kb ? kb * 1024 : 0;
+        }
+        status.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+    }
+    return 0;
+}
+
+void resetPeakResident() {
+    std::ofstream clear("/proc/self/clear_refs");
+    clear << "5";
+}
+
+std::size_t availableBytes() {
+    std::size_t available = std::numeric_limits<std::size_t>::max();
+    std::ifstream meminfo("/proc/meminfo");
+    std::string key;
+    std::size_t kb = 0;
+    std::string unit;
+    while (meminfo >> key >> kb >> unit)
+        if (key == "MemAvailable:") available = kb * 1024;
+    std::size_t max = 0, current = 0;
+    if (readNumber("/sys/fs/cgroup/memory.max", max) &&
+        readNumber("/sys/fs/cgroup/memory.current", current))
+        available = std::min(available, max > current ? max - current : 0);
+    return available == std::numeric_limits<std::size_t>::max() ? 0 : available;
+}
+
+}  // namespace phongfit

@@ -1,0 +1,23 @@
+// What memory the process has and may still take, read from Linux (/proc, cgroup v2).
+#pragma once
+
+#include <cstddef>
+
+namespace phongfit {
+
+// Bytes the process holds now (resident set), 0 where it cannot be read.
+std::size_t residentBytes();
+
+// The most the process has held since it started or since resetPeakResident() (VmHWM), 0 where
+// it cannot be read.
+std::size_t peakResidentBytes();
+
+// Starts peakResidentBytes() afresh from what the process holds now (Linux' clear_refs "5"; where
+// that is not allowed the peak stays the process' own).
+void resetPeakResident();
+
+// Bytes the process may still allocate: the smaller of the machine's available memory
+// (MemAvailable) and what the cgroup's memory.max leaves; 0 where neither can be read.
+std::size_t availableBytes();
+
+}  // namespace phongfit

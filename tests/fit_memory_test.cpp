@@ -1,0 +1,121 @@
+// The fit's memory (docs/design/fitter.md, "Memory"): beyond the images and the recorded paths, at
+// most kStateBytesPerPixel a used pixel. Counted exactly: this executable replaces operator new
+// and delete with ones that keep the bytes allocated and their peak.
+#include <gtest/gtest.h>
+#include <malloc.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
+#include <new>
+#include <string>
+
+#include "image.h"
+#include "memory_plan.h"
+#include "renderer.h"
+#include "scene_fit.h"
+#include "scene_parser.h"
+
+namespace {
+
+std::atomic<std::int64_t> allocated{0}, peak{0};
+
+void* counted(void* p) {
+    if (p == nullptr) throw std::bad_alloc();
+    const std::int64_t now = allocated.fetch_add(std::int64_t(malloc_usable_size(p))) +
+                             std::int64_t(malloc_usable_size(p));
+    std::int64_t seen = peak.load();
+    while (now > seen && !peak.compare_exchange_weak(seen, now)) {
+    }
+    return p;
+}
+
+void released(void* p) {
+    if (p == nullptr) return;
+    allocated.fetch_sub(std::int64_t(malloc_usable_size(p)));
+    std::free(p);
+}
+
+std::size_t aligned(std::size_t n, std::align_val_t a) {
+    const std::size_t align = std::size_t(a);
+    return (std::max<std::size_t>(n, 1) + align - 1) / align * align;
+}
+
+}  // namespace
+
+void* operator new(std::size_t n) { return counted(std::malloc(std::max<std::size_t>(n, 1))); }
+void* operator new[](std::size_t n) { return counted(std::malloc(std::max<std::size_t>(n, 1))); }
+void* operator new(std::size_t n, std::align_val_t a) {
+    return counted(std::aligned_alloc(std::size_t(a), aligned(n, a)));
+}
+void* operator new[](std::size_t n, std::align_val_t a) {
+    return counted(std::aligned_alloc(std::size_t(a), aligned(n, a)));
+}
+void operator delete(void* p) noexcept { released(p); }
+void operator delete[](void* p) noexcept { released(p); }
+void operator delete(void* p, std::size_t) noexcept { released(p); }
+void operator delete[](void* p, std::size_t) noexcept { released(p); }
+void operator delete(void* p, std::align_val_t) noexcept { released(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { released(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { released(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { released(p); }
+
+namespace phongfit {
+namespace {
+
+const std::string kCornell = std::string(PHONGFIT_SCENES_DIR) + "/cornell_phong.xml";
+
+// The Cornell demo at 320x320 (every pixel sees the sphere through some bounce: all are used),
+// fitted from the demo's start for two rounds: what the fit allocates beyond the problem it was
+// given and the paths of one round stays within the bound.
+TEST(FitMemory, StateBeyondImagesAndPathsIsAtMostTheBoundPerUsedPixel) {
+    const std::map<std::string, std::string> defines = {
+        {"width", "320"}, {"height", "320"}, {"spp", "16"}};
+    const std::filesystem::path image =
+        std::filesystem::temp_directory_path() /
+        ("phongfit_fit_memory_" + std::to_string(::getpid()) + ".exr");
+    {
+        RenderOptions render;
+        render.spp = 16;
+        render.quiet = true;
+        const RenderResult r = Renderer(loadScene(kCornell, defines)).render(render);
+        Image out;
+        out.width = r.width;
+        out.height = r.height;
+        out.rgb = r.rgb;
+        writeExr(out, image.string());
+    }
+    SceneFitInputs inputs;
+    inputs.views = {{kCornell, image.string()}};
+    inputs.materials = {"sphere"};
+    inputs.defines = defines;
+    inputs.kd = Color3::Constant(0.25);
+    inputs.ks = Color3::Constant(0.45);
+    inputs.n = 300;
+    const SceneFitProblem problem = loadSceneFit(inputs);
+    SceneRecording recording;
+    recording.spp = 4;
+    FitOptions options;
+    options.maxRounds = 2;
+    const std::int64_t before = allocated.load();
+    peak.store(before);
+    const FitResult result = fitScene(problem, recording, options);
+    const std::int64_t most = peak.load() - before;
+    std::filesystem::remove(image);
+
+    ASSERT_EQ(result.rounds.size(), 2u);
+    std::size_t recorded = 0;
+    for (const FitRound& r : result.rounds) recorded = std::max(recorded, r.recordedBytes);
+    const double perPixel = double(most - std::int64_t(recorded)) / double(result.pixelsUsed);
+    EXPECT_GT(result.pixelsUsed, 80000u);
+    EXPECT_LE(perPixel, double(kStateBytesPerPixel))
+        << "peak " << most << " bytes beyond the problem, " << recorded << " recorded, "
+        << result.pixelsUsed << " pixels used";
+    std::cout << "fit state: " << perPixel << " bytes a used pixel beyond " << recorded
+              << " bytes of paths\n";
+}
+
+}  // namespace
+}  // namespace phongfit
