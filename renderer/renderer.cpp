@@ -150,12 +150,17 @@ RecordResult Renderer::record(const RecordOptions& options) const {
         std::accumulate(paths.begin(), paths.end(), 0.0) / double(std::max<std::size_t>(pixels, 1));
     const double bytes =
         recordingBytes(integrator, camera_, scene_.sensor, pixelSampler, options.seed, meanPaths);
-    const double budget = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
-    if (bytes > budget)
+    const double half = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    if (bytes > half)
         throw Error(fmt::format(
             "recording {:.0f} paths per pixel of the {}x{} film would take about {:.1f} GB, more "
             "than half of this machine's memory ({:.1f} GB): lower --spp, or the film size",
-            meanPaths, width, height, bytes / 1e9, 2 * budget / 1e9));
+            meanPaths, width, height, bytes / 1e9, 2 * half / 1e9));
+    if (options.memoryBudget > 0 && bytes > options.memoryBudget)
+        throw Error(fmt::format(
+            "recording {:.0f} paths per pixel of the {}x{} film would take about {:.3f} GB, more "
+            "than the {:.3f} GB left for it: lower --spp, or the film size, or raise --max-memory",
+            meanPaths, width, height, bytes / 1e9, options.memoryBudget / 1e9));
 
     const int most = *std::max_element(paths.begin(), paths.end());
     PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size());

@@ -55,6 +55,9 @@ struct RecordOptions {
     std::vector<PhongMaterial> theta0;  // per slot: the parameters to record at
     double defensive = 0.2;             // share of cosine sampling at fitted vertices
     std::string sampler = "mixture";    // at vertices on materials that are not fitted
+    // Bytes the recording may take at its peak (0: no more than half the machine's memory, which
+    // also caps a budget given): one forecast above it is refused before tracing.
+    double memoryBudget = 0;
 };
 
 struct RecordResult {

@@ -13,6 +13,7 @@
 #include "comparison_image.h"
 #include "error.h"
 #include "fit_report.h"
+#include "memory_plan.h"
 #include "path_importance.h"
 #include "scene_parser.h"
 #include "scene_writer.h"
@@ -185,6 +186,10 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
 
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
                    const FitOptions& options) {
+    std::size_t stateBytes = 0;
+    for (const SceneView& v : problem.views)
+        stateBytes += kStateBytesPerPixel * std::size_t(v.observation.width) *
+                      std::size_t(v.observation.height);
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0, int round,
                                     const std::vector<float>& importance,
                                     double pathFactor) -> PathSet {
@@ -210,6 +215,9 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
         o.maxDepth = v.maxDepth;
         o.fittedBsdfs = v.fittedBsdfs;
         o.theta0 = theta0;
+        // What the fit may hold, less the state its solve will need (memory_plan.h).
+        if (const std::optional<std::size_t> available = fitMemoryAvailable(options.memoryLimit))
+            o.memoryBudget = std::max(double(*available) - double(stateBytes), 1.0);
         return v.renderer->record(o).paths;
     };
     std::vector<Observation> observations;

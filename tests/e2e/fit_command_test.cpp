@@ -155,6 +155,28 @@ TEST_F(FitCommand, MaxMemoryTooSmallFailsBeforeRecording) {
     EXPECT_FALSE(std::filesystem::exists(path("no_memory/fit.json")));
 }
 
+// A recording whose forecast (the renderer's pilot) exceeds what --max-memory leaves after the
+// fit's state is refused before tracing, naming the paths, the film and the bytes: 1024 paths a
+// pixel of a 400x400 film forecast about 5 GB, under half this machine's memory but over 2 GB.
+TEST_F(FitCommand, MaxMemoryRefusesARecordingThatWouldNotFit) {
+    // test::runProcess, not run(): this film is not kSize wide.
+    const std::vector<std::string> film = {"-D", "width=400", "-D", "height=400"};
+    std::vector<std::string> args = {PHONGFIT_EXE,          "render",  kSphere, "-o",
+                                     path("sphere400.exr"), "--quiet", "--spp", "1"};
+    args.insert(args.end(), film.begin(), film.end());
+    ASSERT_EQ(test::runProcess(args).exitCode, 0);
+    const std::string view = kSphere + ":" + path("sphere400.exr");
+    args = {PHONGFIT_EXE, "fit",          "--view", view, "--material",          "sphere", "--spp",
+            "1024",       "--max-memory", "2",      "-o", path("big_recording"), "--quiet"};
+    args.insert(args.end(), film.begin(), film.end());
+    const auto r = test::runProcess(args);
+    EXPECT_NE(r.exitCode, 0);
+    EXPECT_NE(r.err.find("recording 1024 paths per pixel of the 400x400 film"), std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("GB left for it"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(path("big_recording/fit.json")));
+}
+
 void writeExrWithNan(const std::string& file) {
     std::vector<float> plane(kSize * kSize, 0.25f);
     plane[7] = std::nanf("");
