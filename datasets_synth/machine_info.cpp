@@ -6,6 +6,8 @@
 #include <thread>
 #include <utility>
 
+#include "build_commit.h"
+
 namespace phongfit {
 namespace {
 
