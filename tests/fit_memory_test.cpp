@@ -53,6 +53,40 @@ void* operator new(std::size_t n, std::align_val_t a) {
 void* operator new[](std::size_t n, std::align_val_t a) {
     return counted(std::aligned_alloc(std::size_t(a), aligned(n, a)));
 }
+// The nothrow forms too (std::stable_partition's temporary buffer): every form allocates here,
+// so every delete frees what this file allocated.
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
+    try {
+        return operator new(n);
+    } catch (...) {
+        return nullptr;
+    }
+}
+void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
+    try {
+        return operator new[](n);
+    } catch (...) {
+        return nullptr;
+    }
+}
+void* operator new(std::size_t n, std::align_val_t a, const std::nothrow_t&) noexcept {
+    try {
+        return operator new(n, a);
+    } catch (...) {
+        return nullptr;
+    }
+}
+void* operator new[](std::size_t n, std::align_val_t a, const std::nothrow_t&) noexcept {
+    try {
+        return operator new[](n, a);
+    } catch (...) {
+        return nullptr;
+    }
+}
+void operator delete(void* p, const std::nothrow_t&) noexcept { released(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { released(p); }
+void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { released(p); }
+void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { released(p); }
 void operator delete(void* p) noexcept { released(p); }
 void operator delete[](void* p) noexcept { released(p); }
 void operator delete(void* p, std::size_t) noexcept { released(p); }
