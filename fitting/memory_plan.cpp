@@ -17,11 +17,27 @@ std::optional<std::size_t> fitMemoryAvailable(std::size_t limit) {
     return available;
 }
 
-std::size_t leastFirstRoundBytes(const std::vector<Observation>& observations) {
+namespace {
+
+std::size_t pixelCount(const std::vector<Observation>& observations) {
     std::size_t pixels = 0;
     for (const Observation& o : observations)
         pixels += std::size_t(o.width) * std::size_t(o.height);
-    return pixels * (kStateBytesPerPixel + 2 * kLeastRecordedBytesPerPixel);
+    return pixels;
+}
+
+}  // namespace
+
+std::size_t stateBytes(const std::vector<Observation>& observations) {
+    return pixelCount(observations) * kStateBytesPerPixel;
+}
+
+std::size_t leastFirstRoundBytes(const std::vector<Observation>& observations) {
+    return stateBytes(observations) + pixelCount(observations) * 2 * kLeastRecordedBytesPerPixel;
+}
+
+double nextRoundBytes(std::size_t recordedBytes, double growth, std::size_t pixelsUsed) {
+    return double(recordedBytes) * growth + double(kStateBytesPerPixel) * double(pixelsUsed);
 }
 
 void requireMemory(std::size_t need, std::optional<std::size_t> available,

@@ -22,9 +22,15 @@ inline constexpr std::size_t kLeastRecordedBytesPerPixel = 16;
 // neither can be read.
 std::optional<std::size_t> fitMemoryAvailable(std::size_t limit);
 
-// The least the first round needs: the state of every pixel of the views (any may be used) and
-// two recordings of them.
+// The state of every pixel of the views (any may be used): what a recording must leave the solve.
+std::size_t stateBytes(const std::vector<Observation>& observations);
+
+// The least the first round needs: the state and two recordings of every pixel of the views.
 std::size_t leastFirstRoundBytes(const std::vector<Observation>& observations);
+
+// What a later round needs: `recordedBytes` (the last round's paths) times `growth`, and the
+// state of the `pixelsUsed` pixels the last round used.
+double nextRoundBytes(std::size_t recordedBytes, double growth, std::size_t pixelsUsed);
 
 // Throws Error, naming what is needed and what is available, when `need` exceeds `available`.
 void requireMemory(std::size_t need, std::optional<std::size_t> available, const std::string& what);

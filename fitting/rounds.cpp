@@ -69,8 +69,8 @@ std::vector<std::vector<double>> ksScatterFloor(const std::vector<MaterialScatte
 // the state of the pixels the last round used.
 bool fitsMemory(const FitResult& result, double growth, std::size_t limit) {
     const std::optional<std::size_t> available = fitMemoryAvailable(limit);
-    const double need = double(result.rounds.back().recordedBytes) * growth +
-                        double(kStateBytesPerPixel) * double(result.pixelsUsed);
+    const double need =
+        nextRoundBytes(result.rounds.back().recordedBytes, growth, result.pixelsUsed);
     return !available || need <= double(*available);
 }
 

@@ -186,10 +186,9 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
 
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
                    const FitOptions& options) {
-    std::size_t stateBytes = 0;
-    for (const SceneView& v : problem.views)
-        stateBytes += kStateBytesPerPixel * std::size_t(v.observation.width) *
-                      std::size_t(v.observation.height);
+    std::vector<Observation> observations;
+    for (const SceneView& v : problem.views) observations.push_back(v.observation);
+    const std::size_t state = stateBytes(observations);
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0, int round,
                                     const std::vector<float>& importance,
                                     double pathFactor) -> PathSet {
@@ -217,11 +216,9 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
         o.theta0 = theta0;
         // What the fit may hold, less the state its solve will need (memory_plan.h).
         if (const std::optional<std::size_t> available = fitMemoryAvailable(options.memoryLimit))
-            o.memoryBudget = std::max(double(*available) - double(stateBytes), 1.0);
+            o.memoryBudget = std::max(double(*available) - double(state), 1.0);
         return v.renderer->record(o).paths;
     };
-    std::vector<Observation> observations;
-    for (const SceneView& v : problem.views) observations.push_back(v.observation);
     FitOptions o = options;
     o.recordingFollowsEstimate = !std::all_of(problem.views.begin(), problem.views.end(),
                                               [](const SceneView& v) { return v.deltaLightsOnly; });
