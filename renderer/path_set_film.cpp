@@ -1,5 +1,7 @@
 #include "path_set_film.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 
 namespace phongfit {
@@ -74,6 +76,13 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.terms.resize(set.pixelStart[pixels]);
     set.vertices.resize(nextVertex[pixels]);
     std::vector<std::uint32_t> nextTerm(set.pixelStart.begin(), set.pixelStart.end() - 1);
+    // The set's pages become resident as they are written (DefaultInitAllocator), in tile order,
+    // while each tile's record is freed once copied and the freed memory handed back to the
+    // system every sixteenth of the paths: the peak stays near one copy of the paths, not two.
+    const std::size_t trimEvery = std::max<std::size_t>(
+        (set.terms.size() * sizeof(PathTerm) + set.vertices.size() * sizeof(PathVertex)) / 16,
+        std::size_t(1) << 20);
+    std::size_t freed = 0;
     for (TileRecord& record : tiles_) {
         for (PathTerm term : record.terms) {
             const std::uint32_t p = term.pixel;
@@ -84,7 +93,13 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
             term.constant = (term.constant.cast<double>() * rescale[p]).cast<float>();
             set.terms[nextTerm[p]++] = term;
         }
-        record = {};  // freed as soon as it is copied, lowering the peak
+        freed += record.terms.capacity() * sizeof(PathTerm) +
+                 record.vertices.capacity() * sizeof(PathVertex);
+        record = {};
+        if (freed >= trimEvery) {
+            malloc_trim(0);
+            freed = 0;
+        }
     }
     tiles_.clear();
     return set;

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "default_init_allocator.h"
 #include "math.h"
 
 namespace phongfit {
@@ -31,8 +32,8 @@ struct PathSet {
     int spp = 0;
     int slots = 0;                         // number of fitted materials
     std::vector<Color<float>> background;  // per pixel: the part that does not depend on theta
-    std::vector<PathTerm> terms;           // sorted by pixel
-    std::vector<PathVertex> vertices;
+    UninitializedVector<PathTerm> terms;   // sorted by pixel
+    UninitializedVector<PathVertex> vertices;
     std::vector<std::uint32_t> pixelStart;  // terms of pixel p are [pixelStart[p], pixelStart[p+1])
     // Paths each pixel's estimate is the mean of, where they differ from `spp` (a recording that
     // spends more paths where they inform the fit); empty: `spp` everywhere.
