@@ -42,8 +42,12 @@ struct MaterialFit {
     Color3 kd = Color3::Zero(), ks = Color3::Zero();
     double n = 0;
     // Standard errors; 0 for the parameters in `unconstrained`, which are held at their start.
+    // The fit works in log n: logNStd is the standard error s of log n (raised to the rounds'
+    // scatter), a round's nStd n s; the result's nStd is at least the standard deviation of n
+    // where log n is normal with s (logNormalStd), and what the widenings in n reached.
     Color3 kdStd = Color3::Zero(), ksStd = Color3::Zero();
     double nStd = 0;
+    double logNStd = 0;
     // "kd", "ks", "n", or per channel "kd.r", "ks.b", ... when only some channels are
     // unconstrained.
     std::vector<std::string> unconstrained;
@@ -54,7 +58,7 @@ struct MaterialFit {
 };
 
 // The free parameters whose standard error is as large as the parameter itself (kd and ks:
-// std >= max(value, 0.01) in some channel; n: std >= n, uncertain by a factor e or more), by
+// std >= max(value, 0.01) in some channel; n: std >= n, uncertain by a factor 2 or more), by
 // name ("kd", "ks", "n"): what the round's recordings and the images do not resolve.
 std::vector<std::string> unresolvedParameters(const MaterialFit& fit);
 

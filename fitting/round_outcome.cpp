@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "convergence.h"
 
@@ -25,7 +26,8 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
     }
     // exp(log n) need not round-trip: a held n is reported exactly as it started.
     if (held.n) fit.n = std::clamp(params.start(m).n, kMinExponent, kMaxExponent);
-    fit.nStd = fit.n * stdNatural[L::kLogN];
+    fit.logNStd = stdNatural[L::kLogN];
+    fit.nStd = fit.n * fit.logNStd;
     static constexpr const char* kChannel[3] = {"r", "g", "b"};
     for (const char* name : {"kd", "ks"}) {
         const bool diffuse = name[1] == 'd';
@@ -40,6 +42,15 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
     }
     if (held.n) fit.unconstrained.push_back("n");
     return fit;
+}
+
+double logNormalStd(double n, double nStd) {
+    if (!(n > 0) || !(nStd > 0)) return nStd;
+    // n lies in [kMinExponent, kMaxExponent]: no distribution there spreads more than half that.
+    const double most = (kMaxExponent - kMinExponent) / 2;
+    const double v = (nStd / n) * (nStd / n);
+    if (v > 300) return most;
+    return std::min(n * std::sqrt(std::expm1(v) * std::exp(v)), most);
 }
 
 std::vector<std::string> unresolvedParameters(const MaterialFit& fit) {

@@ -40,7 +40,10 @@ void widenToRoundScatter(FitResult& result) {
             if (m.kdStd[c] > 0) m.kdStd[c] = std::max(m.kdStd[c], scatter[s].kd[c]);
             if (m.ksStd[c] > 0) m.ksStd[c] = std::max(m.ksStd[c], scatter[s].ks[c]);
         }
-        if (m.nStd > 0) m.nStd = std::max(m.nStd, m.n * scatter[s].logN);
+        if (m.nStd > 0) {
+            m.logNStd = std::max(m.logNStd, scatter[s].logN);
+            m.nStd = std::max(m.nStd, m.n * scatter[s].logN);
+        }
     }
 }
 

@@ -351,6 +351,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             (why == "rounds" || why == "time budget" || why == "memory" || why == "interrupted" ||
              why == "sharper lobe"))
             widenToDrift(result);
+    }
+    for (MaterialFit& m : result.materials)
+        m.nStd = std::max(m.nStd, logNormalStd(m.n, m.n * m.logNStd));
+    if (!exact) {
         // A converged estimate whose rounds scatter by as much as a parameter is not resolved.
         const bool resolved = allResolved(result.materials);
         if (result.converged && !resolved) {

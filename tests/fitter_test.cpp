@@ -21,6 +21,7 @@
 #include "objective.h"
 #include "parameter_state.h"
 #include "replay.h"
+#include "round_outcome.h"
 #include "sharper_probe.h"
 #include "uncertainty.h"
 
@@ -277,6 +278,32 @@ TEST(Resolution, NamesParametersAsUncertainAsTheyAreLarge) {
     EXPECT_TRUE(unresolvedParameters(fit).empty());
     fit.kdStd[1] = 0.4;
     EXPECT_EQ(unresolvedParameters(fit), (std::vector<std::string>{"kd"}));
+}
+
+// A result's n standard error is the standard deviation of n where log n is normal with the
+// fit's standard error s (nStd / n to first order), here against numerical quadrature of that
+// log-normal; it approaches n s where s is small, and stays within half of n's range.
+TEST(Resolution, ExponentStandardErrorIsTheLogNormalSpread) {
+    const auto quadrature = [](double n, double s) {
+        double mass = 0, first = 0, second = 0;
+        const int steps = 200000;
+        for (int i = 0; i <= steps; ++i) {
+            const double z = -12 + 24.0 * i / steps, w = (i == 0 || i == steps ? 0.5 : 1.0);
+            const double density = w * std::exp(-0.5 * z * z), value = n * std::exp(s * z);
+            mass += density;
+            first += density * value;
+            second += density * value * value;
+        }
+        const double mean = first / mass;
+        return std::sqrt(second / mass - mean * mean);
+    };
+    for (const double s : {0.05, 0.3, 1.0, 2.28})
+        EXPECT_NEAR(logNormalStd(527, 527 * s), quadrature(527, s), 1e-6 * quadrature(527, s))
+            << "s " << s;
+    EXPECT_NEAR(logNormalStd(300, 3), 3, 3e-4);  // s = 0.01: n s
+    EXPECT_NEAR(logNormalStd(527, 1204), 97151, 1);
+    EXPECT_EQ(logNormalStd(1, 40), (kMaxExponent - kMinExponent) / 2);
+    EXPECT_EQ(logNormalStd(100, 0), 0);  // held
 }
 
 TEST(Identifiability, FindsInvisibleAndCollinearParameters) {
