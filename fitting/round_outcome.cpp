@@ -44,11 +44,11 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
     return fit;
 }
 
-double logNormalStd(double n, double nStd) {
-    if (!(n > 0) || !(nStd > 0)) return nStd;
+double logNormalStd(double n, double s) {
+    if (!(n > 0) || !(s > 0)) return 0;
     // n lies in [kMinExponent, kMaxExponent]: no distribution there spreads more than half that.
     const double most = (kMaxExponent - kMinExponent) / 2;
-    const double v = (nStd / n) * (nStd / n);
+    const double v = s * s;
     if (v > 300) return most;
     return std::min(n * std::sqrt(std::expm1(v) * std::exp(v)), most);
 }

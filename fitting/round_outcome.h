@@ -27,12 +27,12 @@ struct RoundOutcome {
     std::map<std::string, std::size_t> leftOut;
 };
 
-// The standard deviation of n where log n is normal with standard error s = nStd / n (n s to first
-// order): n sqrt((e^(s^2) - 1) e^(s^2)). Where s is large (a lobe the recordings barely resolve)
+// The standard deviation of n where log n is normal with standard error s (n s to first order):
+// n sqrt((e^(s^2) - 1) e^(s^2)). Where s is large (a lobe the recordings barely resolve)
 // the first order understates the sharp side by orders of magnitude: n 527 +- 1204 (s = 2.3) for
 // a true 30000 is +- 97000 as a log-normal. At most half n's range. A fit's result has at least
 // this of its logNStd; its rounds keep n s.
-double logNormalStd(double n, double nStd);
+double logNormalStd(double n, double s);
 
 // Material block `m` at `params`' point, with standard errors `stdNatural` (its natural ones)
 // and the parameters it holds named unconstrained.

@@ -352,8 +352,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
              why == "sharper lobe"))
             widenToDrift(result);
     }
-    for (MaterialFit& m : result.materials)
-        m.nStd = std::max(m.nStd, logNormalStd(m.n, m.n * m.logNStd));
+    for (MaterialFit& m : result.materials) m.nStd = std::max(m.nStd, logNormalStd(m.n, m.logNStd));
     if (!exact) {
         // A converged estimate whose rounds scatter by as much as a parameter is not resolved.
         const bool resolved = allResolved(result.materials);

@@ -298,10 +298,10 @@ TEST(Resolution, ExponentStandardErrorIsTheLogNormalSpread) {
         return std::sqrt(second / mass - mean * mean);
     };
     for (const double s : {0.05, 0.3, 1.0, 2.28})
-        EXPECT_NEAR(logNormalStd(527, 527 * s), quadrature(527, s), 1e-6 * quadrature(527, s))
+        EXPECT_NEAR(logNormalStd(527, s), quadrature(527, s), 1e-6 * quadrature(527, s))
             << "s " << s;
-    EXPECT_NEAR(logNormalStd(300, 3), 3, 3e-4);  // s = 0.01: n s
-    EXPECT_NEAR(logNormalStd(527, 1204), 97151, 1);
+    EXPECT_NEAR(logNormalStd(300, 0.01), 3, 3e-4);  // n s
+    EXPECT_NEAR(logNormalStd(527, 1204.0 / 527), 97151, 1);
     EXPECT_EQ(logNormalStd(1, 40), (kMaxExponent - kMinExponent) / 2);
     EXPECT_EQ(logNormalStd(100, 0), 0);  // held
 }
