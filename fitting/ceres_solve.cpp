@@ -141,8 +141,10 @@ Minimized minimizeMoments(Objective<P>& objective, ParameterState<P>& params,
     problem.AddResidualBlock(new MomentResidual<P>(moments, blockSlots, params.held(), free,
                                                    instruments.whitening(free)),
                              nullptr, blocks);
-    return solveProblem(problem, options, ceres::Solver::Options().initial_trust_region_radius,
-                        kMomentTolerance);
+    FitOptions momentOptions = options;
+    momentOptions.maxIterations = std::min(options.maxIterations, kMomentIterations);
+    return solveProblem(problem, momentOptions,
+                        ceres::Solver::Options().initial_trust_region_radius, kMomentTolerance);
 }
 
 template Minimized minimizeLeastSquares<kRgbBlock>(Objective<kRgbBlock>&,

@@ -19,6 +19,10 @@ namespace phongfit {
 
 // Ceres' relative function tolerance for the moment equations, whose cost is 0 at the root.
 inline constexpr double kMomentTolerance = 1e-10;
+// Ceres iterations a moment solve may take: near a root Gauss-Newton reaches it in under ten; one
+// that has not by then crawls (no root in reach, or a bound), and the next pass goes on from there
+// with the instruments moved (docs/design/fitter.md, "A round").
+inline constexpr int kMomentIterations = 25;
 
 struct Minimized {
     int iterations = 0;

@@ -95,6 +95,7 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
               : naturalStd(analysis.gram, analysis.leastSquaresScores);
     instruments_.adopt(objective_, at_);
     std::vector<Eigen::Matrix<double, P, 1>> instrumentPoint = params_.naturalBlocks();
+    const bool anchorConverged = out.solverConverged;
     for (int pass = 1;; ++pass) {
         account(out, minimizeMoments(objective_, params_, instruments_, options_));
         analysis = analyse();
@@ -111,6 +112,7 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
             return analysis;
         params_.setInternal(anchorX);
         out.naturalStd = anchorStd;
+        out.solverConverged = anchorConverged;
         return analyse();
     }
 }

@@ -173,8 +173,14 @@ TEST_P(SubPixelHighlight, KeepsItsExponentFree) {
     const auto& m = report["materials"]["sphere"];
     EXPECT_TRUE(m["unconstrained"].empty()) << m["unconstrained"].dump();
     EXPECT_GE(report["rounds"].size(), 2u);
-    // A point light seen directly: the recordings replay any lobe alike, no sharper probe.
-    for (const auto& r : report["rounds"]) EXPECT_FALSE(r["probe"].get<bool>()) << r.dump();
+    // A point light seen directly: the recordings replay any lobe alike, no sharper probe. The
+    // moment equations have no root in reach here: each solve stops after kMomentIterations and
+    // the next pass goes on with the instruments moved (before that cap, rounds crawled for up to
+    // 860 Ceres iterations to the same estimate; now at most 260).
+    for (const auto& r : report["rounds"]) {
+        EXPECT_FALSE(r["probe"].get<bool>()) << r.dump();
+        EXPECT_LE(r["iterations"].get<int>(), 300) << r.dump();
+    }
     for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(m["kd"][c].get<double>(), 0.6, 0.02 * 0.6);
         const double ks = m["ks"][c].get<double>(), ksStd = m["ks_std"][c].get<double>();
@@ -195,7 +201,10 @@ INSTANTIATE_TEST_SUITE_P(RoundTrip, SubPixelHighlight, ::testing::Values(3, 1));
 // A backlit sphere (stiff-case study sample 35): at 4 paths round 0, recorded at the start
 // (n = 100 for a true 10.7), sees too little of the lobe and holds n there; held for good, ks
 // stayed small and kd went to 0.96 +- 0.14, 4.6 standard errors off. The lobe test is decided
-// anew each round, and the estimate's errors then cover the truth.
+// anew each round: a later round frees n, and the estimate's errors cover the truth. Whether the
+// last round holds n again is the image's noise (256 paths a pixel: kd's standard error is 0.4 or
+// more at every seed, the noise floor): seeds 1-8 end with n held in 3 of 8, before the moment
+// solves' iteration cap (c6bcf14) as after.
 TEST_F(RoundTrip, GrazingHighlightReleasesAnExponentHeldInRoundZero) {
     const std::map<std::string, std::string> truth = {{"kd", "0.31"},       {"ks", "0.29"},
                                                       {"n", "10.65"},       {"light_x", "-2.005"},
@@ -205,9 +214,17 @@ TEST_F(RoundTrip, GrazingHighlightReleasesAnExponentHeldInRoundZero) {
                                       "--n",    "100",  "--spp", "4"};
     const auto d = defines(truth);
     extra.insert(extra.end(), d.begin(), d.end());
-    const auto m = fit({kOrbit + ":" + image}, extra, "fit")["materials"]["sphere"];
-    EXPECT_TRUE(m["unconstrained"].empty()) << m["unconstrained"].dump();
+    const auto report = fit({kOrbit + ":" + image}, extra, "fit");
+    bool released = false;
+    for (std::size_t r = 1; r < report["rounds"].size(); ++r)
+        released = released || report["rounds"][r]["materials"]["sphere"]["unconstrained"].empty();
+    EXPECT_TRUE(released);
+    const auto& m = report["materials"]["sphere"];
     EXPECT_LT(std::abs(m["kd"][0].get<double>() - 0.31), 3 * m["kd_std"][0].get<double>());
+    EXPECT_LT(std::abs(m["ks"][0].get<double>() - 0.29), 3 * m["ks_std"][0].get<double>());
+    if (m["unconstrained"].empty()) {
+        EXPECT_LT(std::abs(m["n"].get<double>() - 10.65), 3 * m["n_std"].get<double>());
+    }
 }
 
 // Issue 12's area-light case at 128 x 128: the highlight is the quad light's reflection, a few
