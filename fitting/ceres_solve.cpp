@@ -64,14 +64,14 @@ std::vector<int> freeIndices(const ParameterState<P>& params,
 }
 
 ceres::Solver::Options solverOptions(const FitOptions& options, double initialRadius,
-                                     double functionTolerance) {
+                                     double functionTolerance, int maxIterations) {
     ceres::Solver::Options solverOptions;
     solverOptions.linear_solver_type = ceres::DENSE_QR;
     // Dogleg reuses one factorization across rejected steps, which far starts produce several of
     // (measured: 2x fewer Jacobian evaluations than Levenberg-Marquardt).
     solverOptions.trust_region_strategy_type = ceres::DOGLEG;
     solverOptions.initial_trust_region_radius = initialRadius;
-    solverOptions.max_num_iterations = options.maxIterations;
+    solverOptions.max_num_iterations = maxIterations;
     solverOptions.function_tolerance = functionTolerance;
     solverOptions.parameter_tolerance = 1e-10;
     solverOptions.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
@@ -80,9 +80,9 @@ ceres::Solver::Options solverOptions(const FitOptions& options, double initialRa
 }
 
 Minimized solveProblem(ceres::Problem& problem, const FitOptions& options, double initialRadius,
-                       double functionTolerance) {
+                       double functionTolerance, int maxIterations) {
     ceres::Solver::Options solverOptions =
-        phongfit::solverOptions(options, initialRadius, functionTolerance);
+        phongfit::solverOptions(options, initialRadius, functionTolerance, maxIterations);
     StopCallback stop(options.stopRequested);
     if (options.stopRequested) solverOptions.callbacks.push_back(&stop);
     ceres::Solver::Summary summary;
@@ -122,7 +122,8 @@ Minimized minimizeLeastSquares(Objective<P>& objective, ParameterState<P>& param
     // changes the cost by less than moving a tenth of a standard error does: with cost C at the
     // minimum over N residuals, k standard errors cost about k^2 C / N more.
     const double residuals = 3.0 * double(objective.pixels().seeingMaterial);
-    return solveProblem(problem, options, 1.0, std::max(kMomentTolerance, 0.01 / residuals));
+    return solveProblem(problem, options, 1.0, std::max(kMomentTolerance, 0.01 / residuals),
+                        options.maxIterations);
 }
 
 template <int P>
@@ -141,10 +142,8 @@ Minimized minimizeMoments(Objective<P>& objective, ParameterState<P>& params,
     problem.AddResidualBlock(new MomentResidual<P>(moments, blockSlots, params.held(), free,
                                                    instruments.whitening(free)),
                              nullptr, blocks);
-    FitOptions momentOptions = options;
-    momentOptions.maxIterations = std::min(options.maxIterations, kMomentIterations);
-    return solveProblem(problem, momentOptions,
-                        ceres::Solver::Options().initial_trust_region_radius, kMomentTolerance);
+    return solveProblem(problem, options, ceres::Solver::Options().initial_trust_region_radius,
+                        kMomentTolerance, std::min(options.maxIterations, kMomentIterations));
 }
 
 template Minimized minimizeLeastSquares<kRgbBlock>(Objective<kRgbBlock>&,

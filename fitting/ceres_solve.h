@@ -43,14 +43,14 @@ std::vector<int> freeIndices(const ParameterState<P>& params,
                              const std::vector<std::uint32_t>& blockSlots);
 
 // `initialRadius`: Ceres' initial trust region radius, in its Jacobi-scaled coordinates;
-// `functionTolerance`: the relative cost change it stops at.
+// `functionTolerance`: the relative cost change it stops at; `maxIterations`: its iteration cap.
 ceres::Solver::Options solverOptions(const FitOptions& options, double initialRadius,
-                                     double functionTolerance);
+                                     double functionTolerance, int maxIterations);
 
 // Solves, stopping early when FitOptions::stopRequested says so (keeping the last accepted point).
 // Throws Error when Ceres has no usable solution.
 Minimized solveProblem(ceres::Problem& problem, const FitOptions& options, double initialRadius,
-                       double functionTolerance);
+                       double functionTolerance, int maxIterations);
 
 // Least squares (Objective::leastSquaresSums with these weights, or cross products) from
 // `params`, which ends at the solution.

@@ -127,7 +127,7 @@ struct FitOptions {
     // updates within a round stop at `tolerance` alone.
     double tolerance = 1e-3;
     double stdTolerance = 3;
-    int maxIterations = 100;  // Ceres iterations per solve
+    int maxIterations = 100;  // Ceres iterations per solve (moment solves: kMomentIterations)
     // Seconds the fit may take, recording included (0: no limit). No round starts that the last
     // round's time says would end past it, and a solve under way at the limit stops there; the
     // first round always runs. The result then says "time budget".
