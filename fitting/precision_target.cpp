@@ -60,6 +60,22 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
     return plan;
 }
 
+template <int P>
+bool movedPastTarget(const ParameterState<P>& params,
+                     const std::vector<Eigen::Matrix<double, P, 1>>& before,
+                     const std::vector<Eigen::Matrix<double, P, 1>>& after, double target) {
+    using L = BlockLayout<P>;
+    const std::vector<bool> held = params.heldFlags();
+    for (std::size_t s = 0; s < before.size(); ++s)
+        for (int i = 0; i < P; ++i) {
+            if (held[s * P + std::size_t(i)]) continue;
+            const double scale =
+                i == L::kLogN ? 1.0 : std::max(std::abs(before[s][i]), kPrecisionFloor);
+            if (std::abs(after[s][i] - before[s][i]) > target * scale) return true;
+        }
+    return false;
+}
+
 template std::vector<std::vector<double>> recordingShare<kRgbBlock>(Objective<kRgbBlock>&,
                                                                     const Linearization<kRgbBlock>&,
                                                                     const Instruments<kRgbBlock>*,
@@ -76,5 +92,14 @@ template PrecisionPlan planPrecision<kGreyBlock>(const ParameterState<kGreyBlock
                                                  const std::vector<std::vector<double>>&,
                                                  const std::vector<std::vector<double>>&, double,
                                                  double);
+
+template bool movedPastTarget<kRgbBlock>(const ParameterState<kRgbBlock>&,
+                                         const std::vector<Eigen::Matrix<double, kRgbBlock, 1>>&,
+                                         const std::vector<Eigen::Matrix<double, kRgbBlock, 1>>&,
+                                         double);
+template bool movedPastTarget<kGreyBlock>(const ParameterState<kGreyBlock>&,
+                                          const std::vector<Eigen::Matrix<double, kGreyBlock, 1>>&,
+                                          const std::vector<Eigen::Matrix<double, kGreyBlock, 1>>&,
+                                          double);
 
 }  // namespace phongfit

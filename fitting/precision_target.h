@@ -55,4 +55,12 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
                             const std::vector<std::vector<double>>& pathShare, double target,
                             double pathFactor);
 
+// Whether some free parameter moved from `before` to `after` (natural coordinates, per block) by
+// more than `target` asks of its standard error (kd, ks: target * max(value, kPrecisionFloor);
+// log n: target): a move that more paths could make smaller matters to the target.
+template <int P>
+bool movedPastTarget(const ParameterState<P>& params,
+                     const std::vector<Eigen::Matrix<double, P, 1>>& before,
+                     const std::vector<Eigen::Matrix<double, P, 1>>& after, double target);
+
 }  // namespace phongfit

@@ -25,6 +25,11 @@ namespace phongfit {
 
 namespace {
 
+// The most paths, relative to the first round's, that rounds which do not settle grow to (the
+// default 4 paths a pixel become 256). Cells of the recovery matrix that flipped between two states
+// at 4 paths settled by 64 (docs/design/fitter.md, "Rounds that do not settle").
+constexpr double kUnsettledPaths = 64;
+
 double secondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -72,6 +77,22 @@ bool fitsMemory(const FitResult& result, double growth, std::size_t limit) {
     const double need =
         nextRoundBytes(result.rounds.back().recordedBytes, growth, result.pixelsUsed);
     return !available || need <= double(*available);
+}
+
+// Growth of FitOptions::precision's paths after a round that did not settle: twice as many, up to
+// kUnsettledPaths times the first round's, as far as the time budget and memory allow (a round
+// that would not fit is not grown, rather than not started). `next`: the next round's paths
+// against the last one's before this growth.
+double unsettledGrowth(const FitResult& result, const FitOptions& options, double elapsed,
+                       double pathFactor, double next) {
+    double growth = std::max(1.0, std::min(2.0, kUnsettledPaths / pathFactor));
+    if (options.timeBudget > 0)
+        growth =
+            std::clamp((options.timeBudget - elapsed) / (next * result.rounds.back().timeSeconds),
+                       1.0, growth);
+    while (growth > 1 && !fitsMemory(result, next * growth, options.memoryLimit))
+        growth = std::max(1.0, growth / 2);
+    return growth;
 }
 
 bool allResolved(const std::vector<MaterialFit>& materials) {
@@ -254,6 +275,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const bool settled = withinTolerance<P>(params.naturalBlocks(recorded),
                                                 params.naturalBlocks(solved), noise, options) ||
                              (exact && out.solverConverged);
+        // A round that did not settle by more than the precision target tolerates.
+        const bool movedPast = options.precision > 0 &&
+                               movedPastTarget<P>(params, params.naturalBlocks(recorded),
+                                                  params.naturalBlocks(solved), options.precision);
         // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
         // (judged before lobe confirmation, which the probe's jump would put in the scatter) from
         // a solve not cut short.
@@ -336,6 +361,13 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 pathFactor = std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
             }
+        } else if (round >= 2 && !exact && movedPast) {
+            // Not settled, by more than the precision target allows, once the estimate has
+            // travelled from the start (rounds 0 and 1, as for the rounds' scatter): recordings
+            // this sparse may keep it jumping between states they cannot tell apart
+            // (docs/design/fitter.md, "Rounds that do not settle").
+            pathFactor *= unsettledGrowth(result, options, secondsSince(begin), pathFactor, growth);
+            growth = pathFactor / recordFactor;
         }
         // The probe round records, and starts its solve, at the sharper lobe, and spends its
         // extra paths where that lobe's parameters are informed.

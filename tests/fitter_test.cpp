@@ -785,6 +785,80 @@ TEST(Fitter, ProbeThatDoesNotComeBackInTheLastRoundLeavesTheConvergedEstimateUnv
     EXPECT_EQ(unprobed.materials[0].n, r.materials[0].n);
 }
 
+// Recordings too sparse to tell two lobes apart, modelled as each round's paths seeing the lobe 30%
+// sharper and broader in turn while the recorder is asked for fewer than 4 times the first
+// round's paths: the estimate jumps between two states and never settles. Rounds that do not
+// settle record twice the paths of the last, up to 64 times the first round's, and the fit
+// settles once the paths resolve the lobe.
+TEST(Fitter, RoundsThatDoNotSettleRecordMorePaths) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    double sparseBelow = 4;  // pathFactor below which the rounds' lobes flip
+    double flipBy = 0.3;     // by this relative change in log cos
+    std::vector<double> pathFactors;
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
+                                    const std::vector<float>&, double pathFactor) {
+        if (recording % 2 == 0) pathFactors.push_back(pathFactor);
+        SphereScene s = scene;
+        s.split = recording + 1;
+        PathSet ps = makePaths(s);
+        const float flip = float(recording / 2 % 2 == 0 ? 1 + flipBy : 1 - flipBy);
+        if (pathFactor < sparseBelow)
+            for (PathVertex& v : ps.vertices) v.logCos *= flip;
+        return ps;
+    };
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 200);
+    FitOptions options;
+    options.maxRounds = 10;
+    options.precision = 0.01;                  // the jumps are past it
+    options.recordingFollowsEstimate = false;  // no sharper probe: the rounds alone
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    expectFinite(r);
+    // Rounds 0 and 1 travel from the start; round 2 does not settle, so rounds 3 and 4 record 2
+    // and 4 times the paths; round 4 resolves the lobe and moves to it, round 5 settles there.
+    EXPECT_EQ(pathFactors, (std::vector<double>{1, 1, 1, 2, 4, 8}));
+    ASSERT_EQ(r.rounds.size(), 6u);
+    EXPECT_EQ(r.rounds[5].pathFactor, 8);
+    EXPECT_TRUE(r.converged);
+    EXPECT_EQ(r.stopReason, "precision");
+    expectRecovered(r.materials[0], kTruth, 1e-3);
+
+    // Recordings that never resolve it: the paths grow to 64 times the first round's and no
+    // further, and the fit ends unconverged.
+    sparseBelow = std::numeric_limits<double>::infinity();
+    pathFactors.clear();
+    const FitResult never = fitMaterials({obs}, record, {start}, options);
+    expectFinite(never);
+    EXPECT_EQ(pathFactors, (std::vector<double>{1, 1, 1, 2, 4, 8, 16, 32, 64, 64}));
+    EXPECT_FALSE(never.converged);
+    EXPECT_EQ(never.stopReason, "rounds");
+    const double jump = std::abs(never.rounds[9].materials[0].n - never.rounds[8].materials[0].n);
+    EXPECT_GT(jump, 0.3 * kTruth.n);
+    // n is either listed unconstrained or given a standard error that covers the jumps.
+    const MaterialFit& last = never.materials[0];
+    if (!contains(last.unconstrained, "n")) {
+        EXPECT_GE(last.nStd, jump);
+    }
+
+    // Rounds that jump by less than the precision target asks are not grown: a lobe flipping
+    // by 0.2% in log n (the precision 1%), none at all without a target.
+    flipBy = 0.002;
+    for (const double precision : {0.01, 0.0}) {
+        pathFactors.clear();
+        options.precision = precision;
+        options.maxRounds = 4;
+        const FitResult jittering = fitMaterials({obs}, record, {start}, options);
+        expectFinite(jittering);
+        EXPECT_FALSE(jittering.converged) << "the jumps are past the tolerance";
+        EXPECT_EQ(pathFactors, (std::vector<double>{1, 1, 1, 1})) << precision;
+    }
+    options.precision = 0;
+    flipBy = 0.3;
+    pathFactors.clear();
+    fitMaterials({obs}, record, {start}, options);
+    EXPECT_EQ(pathFactors, (std::vector<double>{1, 1, 1, 1})) << "no target";
+}
+
 // Each recording an unbiased but noisy estimate of `scene`: constants times 1 + 10% noise, drawn
 // from seed + the recording's index.
 PathRecorder noisyRecorder(const SphereScene& scene, unsigned seed) {
