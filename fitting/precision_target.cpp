@@ -7,6 +7,16 @@
 
 namespace phongfit {
 
+namespace {
+
+// What a relative precision is taken of: kd and ks max(value, kPrecisionFloor), log n 1.
+template <int P>
+double precisionScale(int i, double value) {
+    return i == BlockLayout<P>::kLogN ? 1.0 : std::max(std::abs(value), kPrecisionFloor);
+}
+
+}  // namespace
+
 template <int P>
 std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const Linearization<P>& at,
                                                 const Instruments<P>* instruments,
@@ -32,7 +42,6 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
                             const std::vector<std::vector<double>>& naturalStd,
                             const std::vector<std::vector<double>>& pathShare, double target,
                             double pathFactor) {
-    using L = BlockLayout<P>;
     PrecisionPlan plan;
     const double goal = target * target;
     bool allMet = true, allUnmetAtFloor = true;
@@ -41,8 +50,7 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
         const typename ParameterState<P>::NaturalVector y = params.natural(s);
         for (int i = 0; i < P; ++i) {
             if (held[std::size_t(s * P + i)]) continue;
-            const double scale = i == L::kLogN ? 1.0 : std::max(std::abs(y[i]), kPrecisionFloor);
-            const double variance = std::pow(naturalStd[s][i] / scale, 2);
+            const double variance = std::pow(naturalStd[s][i] / precisionScale<P>(i, y[i]), 2);
             if (variance <= goal) continue;
             allMet = false;
             const double share = std::clamp(pathShare[s][i], 0.0, 1.0);
@@ -64,15 +72,12 @@ template <int P>
 bool movedPastTarget(const ParameterState<P>& params,
                      const std::vector<Eigen::Matrix<double, P, 1>>& before,
                      const std::vector<Eigen::Matrix<double, P, 1>>& after, double target) {
-    using L = BlockLayout<P>;
     const std::vector<bool> held = params.heldFlags();
     for (std::size_t s = 0; s < before.size(); ++s)
-        for (int i = 0; i < P; ++i) {
-            if (held[s * P + std::size_t(i)]) continue;
-            const double scale =
-                i == L::kLogN ? 1.0 : std::max(std::abs(before[s][i]), kPrecisionFloor);
-            if (std::abs(after[s][i] - before[s][i]) > target * scale) return true;
-        }
+        for (int i = 0; i < P; ++i)
+            if (!held[s * P + std::size_t(i)] &&
+                std::abs(after[s][i] - before[s][i]) > target * precisionScale<P>(i, before[s][i]))
+                return true;
     return false;
 }
 

@@ -79,17 +79,22 @@ bool fitsMemory(const FitResult& result, double growth, std::size_t limit) {
     return !available || need <= double(*available);
 }
 
+// `growth` of the next round's paths, capped so that, at `roundSeconds` for the paths as they were,
+// the round ends within FitOptions::timeBudget, but never below 1.
+double withinTimeBudget(const FitOptions& options, double elapsed, double roundSeconds,
+                        double growth) {
+    if (options.timeBudget <= 0) return growth;
+    return std::clamp((options.timeBudget - elapsed) / roundSeconds, 1.0, growth);
+}
+
 // Growth of FitOptions::precision's paths after a round that did not settle: twice as many, up to
 // kUnsettledPaths times the first round's, as far as the time budget and memory allow (a round
 // that would not fit is not grown, rather than not started). `next`: the next round's paths
 // against the last one's before this growth.
 double unsettledGrowth(const FitResult& result, const FitOptions& options, double elapsed,
                        double pathFactor, double next) {
-    double growth = std::max(1.0, std::min(2.0, kUnsettledPaths / pathFactor));
-    if (options.timeBudget > 0)
-        growth =
-            std::clamp((options.timeBudget - elapsed) / (next * result.rounds.back().timeSeconds),
-                       1.0, growth);
+    double growth = withinTimeBudget(options, elapsed, next * result.rounds.back().timeSeconds,
+                                     std::max(1.0, std::min(2.0, kUnsettledPaths / pathFactor)));
     while (growth > 1 && !fitsMemory(result, next * growth, options.memoryLimit))
         growth = std::max(1.0, growth / 2);
     return growth;
@@ -272,13 +277,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const Estimate solved = estimateOf(out, theta, options.fitExposure);
         // Exact sets (the same list as both recordings) give the same problem every round: the
         // solver's own convergence is the answer.
-        const bool settled = withinTolerance<P>(params.naturalBlocks(recorded),
-                                                params.naturalBlocks(solved), noise, options) ||
-                             (exact && out.solverConverged);
+        const auto before = params.naturalBlocks(recorded), after = params.naturalBlocks(solved);
+        const bool settled =
+            withinTolerance<P>(before, after, noise, options) || (exact && out.solverConverged);
         // A round that did not settle by more than the precision target tolerates.
-        const bool movedPast = options.precision > 0 &&
-                               movedPastTarget<P>(params, params.naturalBlocks(recorded),
-                                                  params.naturalBlocks(solved), options.precision);
+        const bool movedPast =
+            options.precision > 0 && movedPastTarget<P>(params, before, after, options.precision);
         // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
         // (judged before lobe confirmation, which the probe's jump would put in the scatter) from
         // a solve not cut short.
@@ -354,9 +358,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 growth = kProbePaths / recordFactor;
             } else {
                 growth = next.pathGrowth;
-                if (options.timeBudget > 0)
-                    growth = std::clamp((options.timeBudget - secondsSince(begin)) / r.timeSeconds,
-                                        1.0, growth);
+                growth = withinTimeBudget(options, secondsSince(begin), r.timeSeconds, growth);
                 // Never fewer paths than before a probe that did not come back.
                 pathFactor = std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
