@@ -43,10 +43,10 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     const std::size_t pixels = paths_.size();
     // Terms were scaled by 1 / paths; a pixel that kept fewer is rescaled to their mean (a factor
     // of 1 changes no bit).
-    std::vector<double> rescale(pixels, 1.0);
-    for (std::size_t p = 0; p < pixels; ++p)
-        if (kept_[p] > 0 && kept_[p] != std::uint32_t(paths_[p]))
-            rescale[p] = double(paths_[p]) / kept_[p];
+    const auto rescale = [&](std::size_t p) {
+        return kept_[p] > 0 && kept_[p] != std::uint32_t(paths_[p]) ? double(paths_[p]) / kept_[p]
+                                                                    : 1.0;
+    };
 
     PathSet set;
     set.width = width_;
@@ -55,7 +55,8 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.slots = slots;
     set.background.resize(pixels);
     for (std::size_t p = 0; p < pixels; ++p)
-        set.background[p] = (background_[p] * rescale[p]).cast<float>();
+        set.background[p] = (background_[p] * rescale(p)).cast<float>();
+    background_ = {};
     if (std::any_of(kept_.begin(), kept_.end(),
                     [&](std::uint32_t k) { return k != std::uint32_t(spp); }))
         set.pixelPaths = kept_;
@@ -77,8 +78,9 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.vertices.resize(nextVertex[pixels]);
     std::vector<std::uint32_t> nextTerm(set.pixelStart.begin(), set.pixelStart.end() - 1);
     // The set's pages become resident as they are written (DefaultInitAllocator), in tile order,
-    // while each tile's record is freed once copied and the freed memory handed back to the
-    // system every sixteenth of the paths: the peak stays near one copy of the paths, not two.
+    // while each tile's record is freed once copied (mapped records leave the resident set at
+    // once, the small ones from the heap are handed back to the system every sixteenth of the
+    // paths): the peak stays near one copy of the paths, not two.
     const std::size_t trimEvery = std::max<std::size_t>(
         (set.terms.size() * sizeof(PathTerm) + set.vertices.size() * sizeof(PathVertex)) / 16,
         std::size_t(1) << 20);
@@ -90,7 +92,7 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
             std::copy(first, first + term.vertexCount, set.vertices.begin() + nextVertex[p]);
             term.firstVertex = nextVertex[p];
             nextVertex[p] += term.vertexCount;
-            term.constant = (term.constant.cast<double>() * rescale[p]).cast<float>();
+            term.constant = (term.constant.cast<double>() * rescale(p)).cast<float>();
             set.terms[nextTerm[p]++] = term;
         }
         freed += record.terms.capacity() * sizeof(PathTerm) +
@@ -106,11 +108,11 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
 }
 
 double PathSetFilm::peakBytes(std::size_t pixels, double terms, double vertices) {
-    // Per pixel: paths, background and kept count here; background, pixelStart, two cursors and
-    // the rescale factor in assembly. Terms and vertices: once in the tiles' records, once in the
-    // set.
+    // Per pixel: paths, background and kept count here, the background in double while tracing;
+    // background, pixelStart and two cursors in assembly. Terms and vertices: once in the tiles'
+    // records, once in the set.
     const double perPixel = sizeof(int) + sizeof(Color3) + sizeof(std::uint32_t) +
-                            sizeof(Color<float>) + 3 * sizeof(std::uint32_t) + sizeof(double);
+                            sizeof(Color<float>) + 3 * sizeof(std::uint32_t);
     return double(pixels) * perPixel +
            2 * (terms * sizeof(PathTerm) + vertices * sizeof(PathVertex));
 }

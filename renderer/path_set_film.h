@@ -9,14 +9,16 @@
 #include <span>
 #include <vector>
 
+#include "mapped_allocator.h"
 #include "path_set.h"
 
 namespace phongfit {
 
 class PathSetFilm {
     struct TileRecord {
-        std::vector<PathTerm> terms;  // in the order traced; firstVertex into `vertices`
-        std::vector<PathVertex> vertices;
+        // Mapped: the records of all tiles grow side by side (mapped_allocator.h).
+        std::vector<PathTerm, MappedAllocator<PathTerm>> terms;         // in the order traced;
+        std::vector<PathVertex, MappedAllocator<PathVertex>> vertices;  // firstVertex into these
     };
 
 public:
