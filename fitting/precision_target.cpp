@@ -55,11 +55,16 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
             allMet = false;
             const double share = std::clamp(pathShare[s][i], 0.0, 1.0);
             const double fromImage = (1 - share) * variance, fromPaths = share * variance;
-            if (fromImage >= goal && pathFactor >= kMostPathGrowth) continue;
+            // Out of reach; at the floor once the paths have grown and no longer hold the
+            // larger part (else more paths still shrink it: to the image's part, at most).
+            const bool outOfReach = fromImage >= goal;
+            if (outOfReach && fromImage >= fromPaths && pathFactor >= kMostPathGrowth) continue;
             allUnmetAtFloor = false;
-            plan.pathGrowth =
-                std::max(plan.pathGrowth, fromImage >= goal ? kMostPathGrowth / pathFactor
-                                                            : fromPaths / (goal - fromImage));
+            plan.pathGrowth = std::max(
+                plan.pathGrowth, !outOfReach ? fromPaths / (goal - fromImage)
+                                 : pathFactor < kMostPathGrowth
+                                     ? std::max(kMostPathGrowth / pathFactor, fromPaths / fromImage)
+                                     : fromPaths / fromImage);
         }
     }
     plan.met = allMet;
