@@ -98,6 +98,23 @@ RenderResult Renderer::render(const RenderOptions& options) const {
     return film.result(std::move(stats));
 }
 
+std::vector<std::uint8_t> Renderer::seenDirectly(const std::vector<int>& bsdfs, int threads) const {
+    const int width = camera_.width(), height = camera_.height();
+    std::vector<std::uint8_t> seen(std::size_t(width) * std::size_t(height), 0);
+    runInArena(threads, [&] {
+        tbb::parallel_for(0, height, [&](int y) {
+            for (int x = 0; x < width; ++x) {
+                const std::optional<Hit> hit =
+                    geometry_->intersect(camera_.generateRay(x + 0.5, y + 0.5));
+                seen[std::size_t(y) * width + x] =
+                    hit && std::find(bsdfs.begin(), bsdfs.end(), scene_.shapes[hit->shape].bsdf) !=
+                               bsdfs.end();
+            }
+        });
+    });
+    return seen;
+}
+
 RecordResult Renderer::record(const RecordOptions& options) const {
     if (options.fittedBsdfs.size() != options.theta0.size())
         throw Error("record: one starting material per fitted bsdf is needed");
@@ -119,18 +136,11 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     const int width = camera_.width(), height = camera_.height();
     const std::size_t pixels = std::size_t(width) * height;
     std::vector<int> paths(pixels, options.spp);
-    if (options.directSpp > options.spp)
-        runInArena(options.threads, [&] {
-            tbb::parallel_for(0, height, [&](int y) {
-                for (int x = 0; x < width; ++x) {
-                    const std::optional<Hit> hit =
-                        geometry_->intersect(camera_.generateRay(x + 0.5, y + 0.5));
-                    const int bsdf = hit ? scene_.shapes[hit->shape].bsdf : -1;
-                    if (bsdf >= 0 && slots[bsdf] >= 0)
-                        paths[std::size_t(y) * width + x] = options.directSpp;
-                }
-            });
-        });
+    if (options.directSpp > options.spp) {
+        const std::vector<std::uint8_t> direct = seenDirectly(options.fittedBsdfs, options.threads);
+        for (std::size_t p = 0; p < pixels; ++p)
+            if (direct[p]) paths[p] = options.directSpp;
+    }
     if (!options.extraPaths.empty()) {
         if (options.extraPaths.size() != pixels ||
             *std::min_element(options.extraPaths.begin(), options.extraPaths.end()) < 0)
@@ -138,6 +148,13 @@ RecordResult Renderer::record(const RecordOptions& options) const {
                 fmt::format("record: {} extra path counts given for a {}x{} film, each >= 0",
                             options.extraPaths.size(), width, height));
         for (std::size_t p = 0; p < pixels; ++p) paths[p] += options.extraPaths[p];
+    }
+    if (!options.recorded.empty()) {
+        if (options.recorded.size() != pixels)
+            throw Error(fmt::format("record: {} pixel flags given for a {}x{} film",
+                                    options.recorded.size(), width, height));
+        for (std::size_t p = 0; p < pixels; ++p)
+            if (!options.recorded[p]) paths[p] = 0;
     }
 
     // A Sobol scene records on padded Sobol points: at the few paths a pixel a fit records, each

@@ -47,6 +47,9 @@ struct RecordOptions {
     int directSpp = 0;
     // Per pixel (width x height, each >= 0), paths on top of spp and directSpp; empty: none.
     std::vector<int> extraPaths;
+    // Per pixel (width x height): 0 records no path there (a pixel the fit leaves out); empty:
+    // every pixel records.
+    std::vector<std::uint8_t> recorded;
     std::uint64_t seed = 0;
     std::optional<PixelSamplerType> pixelSampler;  // unset: the scene's
     int threads = 0;
@@ -79,6 +82,10 @@ public:
 
     // The depth the options ask for, resolved against the scene's integrator.
     int effectiveMaxDepth(int requested) const;
+
+    // Per pixel of the film (row-major), 1 where the ray through the pixel's centre first hits a
+    // shape whose bsdf is one of `bsdfs` (scene bsdf indices), else 0.
+    std::vector<std::uint8_t> seenDirectly(const std::vector<int>& bsdfs, int threads) const;
 
 private:
     // The tile loop over this scene's film; `pixelSampler` unset: the scene's.

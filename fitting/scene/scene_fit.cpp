@@ -125,6 +125,51 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
     return v;
 }
 
+// Where every fitted material is seen directly somewhere, the pixels that see none of them through
+// their footprint are left out: what they show of the materials comes through other surfaces, a
+// few noisy bounces that pulled the estimate (docs/design/fitter.md, "Pixels that see the
+// materials only indirectly").
+void leaveOutIndirectPixels(std::vector<SceneView>& views, std::size_t materials) {
+    std::vector<std::vector<std::uint8_t>> direct(views.size());
+    std::vector<bool> seen(materials, false);
+    for (std::size_t k = 0; k < views.size(); ++k) {
+        const SceneView& v = views[k];
+        direct[k].assign(v.observation.valid.size(), 0);
+        for (std::size_t s = 0; s < materials; ++s) {
+            const std::vector<std::uint8_t> one = v.renderer->seenDirectly({v.fittedBsdfs[s]}, 0);
+            for (std::size_t p = 0; p < one.size(); ++p)
+                if (one[p] && v.observation.valid[p]) {
+                    direct[k][p] = 1;
+                    seen[s] = true;
+                }
+        }
+    }
+    if (std::find(seen.begin(), seen.end(), false) != seen.end()) return;
+    for (std::size_t k = 0; k < views.size(); ++k) {
+        SceneView& v = views[k];
+        const SensorDesc& film = v.renderer->scene().sensor;
+        // A pixel's samples reach this far from its centre (the Gaussian's 3 standard deviations).
+        const int radius = film.filter == SensorDesc::Filter::Box
+                               ? 1
+                               : std::max(1, int(std::ceil(3 * film.gaussianStddev + 0.5)));
+        const int width = v.observation.width, height = v.observation.height;
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x) {
+                const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
+                if (!v.observation.valid[p]) continue;
+                bool near = false;
+                for (int yy = std::max(y - radius, 0);
+                     !near && yy <= std::min(y + radius, height - 1); ++yy)
+                    for (int xx = std::max(x - radius, 0);
+                         !near && xx <= std::min(x + radius, width - 1); ++xx)
+                        near = direct[k][std::size_t(yy) * std::size_t(width) + std::size_t(xx)];
+                if (near) continue;
+                v.observation.valid[p] = 0;
+                ++v.seenOnlyIndirectly;
+            }
+    }
+}
+
 // observed | re-rendered with the fitted parameters | signed error (comparison_image.h). Rendered
 // anew with more paths than a round records, so the middle column shows the model rather than the
 // recording's noise.
@@ -173,6 +218,7 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
         }
         problem.views.push_back(loadView(spec, inputs, mask ? &*mask : nullptr));
     }
+    if (!inputs.keepIndirect) leaveOutIndirectPixels(problem.views, inputs.materials.size());
     for (int b : problem.views[0].fittedBsdfs) {
         PhongMaterial m = problem.views[0].renderer->scene().bsdfs[b].params;
         if (inputs.kd) m.kd = *inputs.kd;
@@ -209,6 +255,7 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
                 std::count_if(importance.begin(), importance.end(), [](float w) { return w > 0; });
             o.extraPaths = allocatePaths(importance, extra * double(seen), kMostExtraPaths);
         }
+        o.recorded = v.observation.valid;  // the pixels the fit leaves out need no paths
         o.seed = recording.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
         o.threads = recording.threads;
         o.maxDepth = v.maxDepth;
@@ -239,6 +286,7 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
                                    {"left_out", v.depthNote},
                                    {"pixels_clipped", v.clipped},
                                    {"pixels_masked", v.masked},
+                                   {"pixels_seen_only_indirectly", v.seenOnlyIndirectly},
                                    {"pixels_non_finite", v.nonFinite}});
     }
     fs::create_directories(dir);

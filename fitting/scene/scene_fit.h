@@ -28,6 +28,10 @@ struct SceneFitInputs {
     ReadOptions decoding;
     std::optional<double> saturation;  // pixels with a channel at or above it are left out
     bool ignoreNonFinite = false;      // leave NaN/Inf pixels out instead of failing
+    // Keep the pixels that see the fitted materials only through other surfaces (left out by
+    // default where every fitted material is seen directly: loadSceneFit). A fit of the images'
+    // exposure keeps them: every pixel a light reaches constrains it.
+    bool keepIndirect = false;
     // Start values replacing the first view's scene values, for every material.
     std::optional<Color3> kd, ks;
     std::optional<double> n;
@@ -45,6 +49,8 @@ struct SceneView {
     bool deltaLightsOnly = false;
     Observation observation;
     std::size_t clipped = 0, masked = 0, nonFinite = 0;
+    // Left out: no fitted material seen through them or beside them (loadSceneFit).
+    std::size_t seenOnlyIndirectly = 0;
 };
 
 struct SceneFitProblem {

@@ -36,7 +36,7 @@ struct FitCli {
     std::optional<double> n;
     double timeBudget = 0, precision = kDefaultPrecision, maxMemory = 0;
     int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
-    bool fitExposure = false, ignoreNonFinite = false;
+    bool fitExposure = false, ignoreNonFinite = false, keepIndirect = false;
     std::uint64_t seed = 0;
     // Capture fits.
     std::string capture, lights, holdout, albedo = "uniform", intensities = "auto";
@@ -90,6 +90,7 @@ void runSceneFit(const FitCli& a) {
     in.decoding = decoding(a);
     in.saturation = a.saturation;
     in.ignoreNonFinite = a.ignoreNonFinite;
+    in.keepIndirect = a.keepIndirect || a.fitExposure;
     if (!a.kd.empty()) in.kd = parseColorOption(a.kd, "--kd");
     if (!a.ks.empty()) in.ks = parseColorOption(a.ks, "--ks");
     in.n = a.n;
@@ -308,6 +309,10 @@ void addFitCommand(CLI::App& app) {
         ->check(CLI::Range(1, 100));
     scene->add_flag("--fit-exposure", a->fitExposure,
                     "also fit an unknown global scale of the images (observed = s * rendered)");
+    scene->add_flag("--keep-indirect-pixels", a->keepIndirect,
+                    "also fit the pixels that see the fitted materials only through other "
+                    "surfaces (left out by default where every fitted material is seen directly; "
+                    "always kept with --fit-exposure)");
     scene->add_option("--kd", a->kd, "start value, R,G,B or one number (default: the scene's)");
     scene->add_option("--ks", a->ks, "start value, R,G,B or one number (default: the scene's)");
     scene->add_option("--n", a->n, "start value of the exponent (default: the scene's)");

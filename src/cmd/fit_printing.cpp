@@ -91,12 +91,19 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
                          "ks; held where the start materials match their brightness, or as far "
                          "above as kd + ks <= 1 needs)"
                        : "");
+    std::size_t indirect = 0;
+    for (const SceneView& v : problem.views) indirect += v.seenOnlyIndirectly;
+    const std::string leftOut =
+        problem.views[0].depthNote +
+        (indirect > 0
+             ? fmt::format("; {} pixels that see the fitted materials only through other surfaces",
+                           indirect)
+             : "");
     fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
                result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
                result.converged ? fmt::format(" (converged{})", convergedHow(result))
                                 : fmt::format(" (not converged: {})", notConvergedBecause(result)),
-               result.timeSeconds, problem.views[0].depthNote,
-               (std::filesystem::path(dir) / "fit.json").string());
+               result.timeSeconds, leftOut, (std::filesystem::path(dir) / "fit.json").string());
 }
 
 }  // namespace phongfit

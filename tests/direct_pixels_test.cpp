@@ -1,0 +1,163 @@
+// The pixels a scene fit uses: those that see a fitted material directly, through their footprint
+// (Renderer::seenDirectly, leaveOutIndirectPixels in scene_fit.cpp), and recordings that trace no
+// path in the pixels the fit leaves out (RecordOptions::recorded).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+
+#include "error.h"
+#include "image.h"
+#include "render_to_exr.h"
+#include "renderer.h"
+#include "scene_fit.h"
+#include "scene_parser.h"
+
+namespace phongfit {
+namespace {
+
+const std::string kCornell = std::string(PHONGFIT_SCENES_DIR) + "/cornell_area.xml";
+
+// The Cornell box's phong sphere (centre (-0.3, -0.6, 0.1), radius 0.4) seen from (0, 0, 3.9)
+// towards the origin, fov 40 degrees, square film: whether the ray through a pixel's centre
+// meets it, computed here from the scene's numbers.
+bool centreRayMeetsTheSphere(int x, int y, int size) {
+    const double t = std::tan(20.0 * M_PI / 180.0);
+    const Eigen::Vector3d origin(0, 0, 3.9), centre(-0.3, -0.6, 0.1);
+    const Eigen::Vector3d d =
+        Eigen::Vector3d((2 * (x + 0.5) / size - 1) * t, (1 - 2 * (y + 0.5) / size) * t, -1)
+            .normalized();
+    const Eigen::Vector3d oc = origin - centre;
+    const double b = d.dot(oc);
+    return b * b - (oc.squaredNorm() - 0.16) > 0;
+}
+
+TEST(SeenDirectly, IsTheRayThroughEachPixelsCentreMeetingTheMaterial) {
+    const int size = 64;
+    const Renderer renderer(
+        loadScene(kCornell, {{"width", std::to_string(size)}, {"height", std::to_string(size)}}));
+    const std::vector<std::uint8_t> seen =
+        renderer.seenDirectly({renderer.scene().findBsdf("sphere")}, 2);
+    ASSERT_EQ(seen.size(), std::size_t(size * size));
+    int count = 0, differ = 0;
+    for (int y = 0; y < size; ++y)
+        for (int x = 0; x < size; ++x) {
+            count += seen[std::size_t(y * size + x)];
+            differ += bool(seen[std::size_t(y * size + x)]) != centreRayMeetsTheSphere(x, y, size);
+        }
+    EXPECT_GT(count, 200);
+    EXPECT_LE(differ, 2);  // a centre within rounding of the outline, at most
+    // No bsdf: seen nowhere.
+    const std::vector<std::uint8_t> none = renderer.seenDirectly({}, 2);
+    EXPECT_EQ(std::count(none.begin(), none.end(), 1), 0);
+}
+
+TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
+    const Renderer renderer(loadScene(kCornell, {{"width", "24"}, {"height", "24"}}));
+    RecordOptions options;
+    options.spp = 3;
+    options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
+    options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
+    const PathSet all = renderer.record(options).paths;
+    options.recorded.assign(24 * 24, 1);
+    for (std::size_t p = 0; p < options.recorded.size(); p += 3) options.recorded[p] = 0;
+    const PathSet some = renderer.record(options).paths;
+    for (std::size_t p = 0; p < options.recorded.size(); ++p) {
+        const std::uint32_t terms = some.pixelStart[p + 1] - some.pixelStart[p];
+        if (!options.recorded[p]) {
+            EXPECT_EQ(terms, 0u);
+            EXPECT_TRUE((some.background[p] == 0.0f).all());
+            EXPECT_EQ(some.pixelPaths.at(p), 0u);
+            continue;
+        }
+        ASSERT_EQ(terms, all.pixelStart[p + 1] - all.pixelStart[p]) << "pixel " << p;
+        EXPECT_TRUE((some.background[p] == all.background[p]).all());
+        for (std::uint32_t k = 0; k < terms; ++k) {
+            const PathTerm &a = all.terms[all.pixelStart[p] + k],
+                           &b = some.terms[some.pixelStart[p] + k];
+            ASSERT_TRUE((a.constant == b.constant).all());
+            ASSERT_EQ(a.vertexCount, b.vertexCount);
+        }
+    }
+    options.recorded.resize(5);
+    EXPECT_THROW(renderer.record(options), Error);
+}
+
+class SceneFitPixels : public ::testing::Test {
+protected:
+    void SetUp() override {
+        image_ = std::filesystem::temp_directory_path() /
+                 ("phongfit_direct_pixels_" + std::to_string(::getpid()) + ".exr");
+        test::renderToExr(kCornell, defines_, 2, image_.string());
+    }
+    void TearDown() override {
+        std::filesystem::remove(image_);
+        std::filesystem::remove(mask_);
+    }
+    SceneFitInputs inputs() const {
+        SceneFitInputs in;
+        in.views = {{kCornell, image_.string()}};
+        in.materials = {"sphere"};
+        in.defines = defines_;
+        return in;
+    }
+
+    const std::map<std::string, std::string> defines_ = {{"width", "48"}, {"height", "48"}};
+    std::filesystem::path image_,
+        mask_ = std::filesystem::temp_directory_path() /
+                ("phongfit_direct_mask_" + std::to_string(::getpid()) + ".png");
+};
+
+// Kept: the pixels within one pixel (the box filter's reach) of one whose centre sees the sphere.
+TEST_F(SceneFitPixels, PixelsThatSeeTheMaterialOnlyIndirectlyAreLeftOut) {
+    const SceneFitProblem problem = loadSceneFit(inputs());
+    const SceneView& v = problem.views[0];
+    const std::vector<std::uint8_t> seen = v.renderer->seenDirectly(v.fittedBsdfs, 1);
+    std::size_t kept = 0;
+    for (int y = 0; y < 48; ++y)
+        for (int x = 0; x < 48; ++x) {
+            bool near = false;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx)
+                    near = near || (x + dx >= 0 && x + dx < 48 && y + dy >= 0 && y + dy < 48 &&
+                                    seen[std::size_t((y + dy) * 48 + x + dx)]);
+            EXPECT_EQ(bool(v.observation.valid[std::size_t(y * 48 + x)]), near) << x << ", " << y;
+            kept += near;
+        }
+    EXPECT_GT(kept, 100u);
+    EXPECT_EQ(v.seenOnlyIndirectly, 48u * 48u - kept);
+
+    SceneFitInputs in = inputs();
+    in.keepIndirect = true;
+    const SceneFitProblem all = loadSceneFit(in);
+    EXPECT_EQ(all.views[0].seenOnlyIndirectly, 0u);
+    EXPECT_EQ(
+        std::count(all.views[0].observation.valid.begin(), all.views[0].observation.valid.end(), 1),
+        48 * 48);
+}
+
+// A fitted material seen directly by no pixel left in (here masked out): nothing else is left
+// out, what the other pixels show of it is all there is.
+TEST_F(SceneFitPixels, AMaterialSeenOnlyIndirectlyKeepsEveryPixel) {
+    cv::Mat mask(48, 48, CV_8U, cv::Scalar(255));
+    for (int y = 0; y < 48; ++y)
+        for (int x = 0; x < 48; ++x)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx)
+                    if (centreRayMeetsTheSphere(x + dx, y + dy, 48))
+                        mask.at<std::uint8_t>(y, x) = 0;
+    ASSERT_TRUE(cv::imwrite(mask_.string(), mask));
+    SceneFitInputs in = inputs();
+    in.maskPath = mask_.string();
+    const SceneFitProblem problem = loadSceneFit(in);
+    EXPECT_EQ(problem.views[0].seenOnlyIndirectly, 0u);
+    EXPECT_EQ(problem.views[0].masked, std::size_t(48 * 48 - cv::countNonZero(mask)));
+}
+
+}  // namespace
+}  // namespace phongfit
