@@ -29,25 +29,28 @@ struct CountingSink {
 };
 
 // Bytes a recording needs at its peak, from a pilot of one path in each of up to 4096 pixels
-// spread over the film.
+// spread over the film, each standing for its share of the film at its pixel's paths.
 double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
                       const SensorDesc& sensor, PixelSamplerType type, std::uint64_t seed,
-                      double spp) {
+                      const std::vector<int>& paths) {
     const std::size_t pixels = std::size_t(camera.width()) * camera.height();
     const std::size_t pilots = std::min<std::size_t>(pixels, 4096);
-    CountingSink sink;
+    double terms = 0, vertices = 0;
     std::uint64_t rays = 0;
     for (std::size_t k = 0; k < pilots; ++k) {
         const std::size_t p = k * pixels / pilots;
+        if (paths[p] == 0) continue;
         const int x = int(p % camera.width()), y = int(p / camera.width());
         const PixelSampler rng(type, seed, std::uint32_t(p));
         const Vec2d u = rng.get2D(0, 0);
         const Vec2d film = filmPosition(sensor, x, y, u.x(), u.y());
+        CountingSink sink;
         integrator.trace(camera.generateRay(film.x(), film.y()), rng, 0, sink, rays);
+        terms += double(sink.terms) * paths[p];
+        vertices += double(sink.vertices) * paths[p];
     }
-    const double paths = double(pixels) * spp / double(pilots);
-    return PathSetFilm::peakBytes(pixels, double(sink.terms) * paths,
-                                  double(sink.vertices) * paths);
+    const double share = double(pixels) / double(pilots);
+    return PathSetFilm::peakBytes(pixels, terms * share, vertices * share);
 }
 
 }  // namespace
@@ -163,21 +166,27 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     if (pixelSampler == PixelSamplerType::Sobol) pixelSampler = PixelSamplerType::Padded;
 
     // Refuse what would exhaust memory before trying: half the machine's is the budget.
-    const double meanPaths =
-        std::accumulate(paths.begin(), paths.end(), 0.0) / double(std::max<std::size_t>(pixels, 1));
+    const std::size_t recordedPixels =
+        pixels - std::size_t(std::count(paths.begin(), paths.end(), 0));
+    const double meanPaths = std::accumulate(paths.begin(), paths.end(), 0.0) /
+                             double(std::max<std::size_t>(recordedPixels, 1));
     const double bytes =
-        recordingBytes(integrator, camera_, scene_.sensor, pixelSampler, options.seed, meanPaths);
+        recordingBytes(integrator, camera_, scene_.sensor, pixelSampler, options.seed, paths);
+    const std::string what = fmt::format(
+        "recording {:.0f} paths per pixel of the {}x{} film{}", meanPaths, width, height,
+        recordedPixels < pixels ? fmt::format(" (in {} of its pixels)", recordedPixels)
+                                : std::string());
     const double half = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     if (bytes > half)
         throw Error(fmt::format(
-            "recording {:.0f} paths per pixel of the {}x{} film would take about {:.1f} GB, more "
-            "than half of this machine's memory ({:.1f} GB): lower --spp, or the film size",
-            meanPaths, width, height, bytes / 1e9, 2 * half / 1e9));
+            "{} would take about {:.1f} GB, more than half of this machine's memory ({:.1f} GB): "
+            "lower --spp, or the film size",
+            what, bytes / 1e9, 2 * half / 1e9));
     if (options.memoryBudget > 0 && bytes > options.memoryBudget)
         throw Error(fmt::format(
-            "recording {:.0f} paths per pixel of the {}x{} film would take about {:.3f} GB, more "
-            "than the {:.3f} GB left for it: lower --spp, or the film size, or raise --max-memory",
-            meanPaths, width, height, bytes / 1e9, options.memoryBudget / 1e9));
+            "{} would take about {:.3f} GB, more than the {:.3f} GB left for it: lower --spp, or "
+            "the film size, or raise --max-memory",
+            what, bytes / 1e9, options.memoryBudget / 1e9));
 
     const int most = *std::max_element(paths.begin(), paths.end());
     PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size());

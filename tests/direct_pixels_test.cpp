@@ -130,12 +130,12 @@ TEST_F(SceneFitPixels, PixelsThatSeeTheMaterialOnlyIndirectlyAreLeftOut) {
             kept += near;
         }
     EXPECT_GT(kept, 100u);
-    EXPECT_EQ(v.seenOnlyIndirectly, 48u * 48u - kept);
+    EXPECT_EQ(v.offMaterials, 48u * 48u - kept);
 
     SceneFitInputs in = inputs();
     in.keepIndirect = true;
     const SceneFitProblem all = loadSceneFit(in);
-    EXPECT_EQ(all.views[0].seenOnlyIndirectly, 0u);
+    EXPECT_EQ(all.views[0].offMaterials, 0u);
     EXPECT_EQ(
         std::count(all.views[0].observation.valid.begin(), all.views[0].observation.valid.end(), 1),
         48 * 48);
@@ -155,7 +155,7 @@ TEST_F(SceneFitPixels, AMaterialSeenOnlyIndirectlyKeepsEveryPixel) {
     SceneFitInputs in = inputs();
     in.maskPath = mask_.string();
     const SceneFitProblem problem = loadSceneFit(in);
-    EXPECT_EQ(problem.views[0].seenOnlyIndirectly, 0u);
+    EXPECT_EQ(problem.views[0].offMaterials, 0u);
     EXPECT_EQ(problem.views[0].masked, std::size_t(48 * 48 - cv::countNonZero(mask)));
 }
 

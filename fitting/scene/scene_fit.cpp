@@ -165,7 +165,7 @@ void leaveOutIndirectPixels(std::vector<SceneView>& views, std::size_t materials
                         near = direct[k][std::size_t(yy) * std::size_t(width) + std::size_t(xx)];
                 if (near) continue;
                 v.observation.valid[p] = 0;
-                ++v.seenOnlyIndirectly;
+                ++v.offMaterials;
             }
     }
 }
@@ -286,7 +286,7 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
                                    {"left_out", v.depthNote},
                                    {"pixels_clipped", v.clipped},
                                    {"pixels_masked", v.masked},
-                                   {"pixels_seen_only_indirectly", v.seenOnlyIndirectly},
+                                   {"pixels_off_the_materials", v.offMaterials},
                                    {"pixels_non_finite", v.nonFinite}});
     }
     fs::create_directories(dir);

@@ -49,8 +49,9 @@ struct SceneView {
     bool deltaLightsOnly = false;
     Observation observation;
     std::size_t clipped = 0, masked = 0, nonFinite = 0;
-    // Left out: no fitted material seen through them or beside them (loadSceneFit).
-    std::size_t seenOnlyIndirectly = 0;
+    // Left out: pixels whose footprint is off every fitted material, where the materials are seen
+    // directly (loadSceneFit): they see them only through other surfaces, if at all.
+    std::size_t offMaterials = 0;
 };
 
 struct SceneFitProblem {

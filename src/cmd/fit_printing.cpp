@@ -92,13 +92,13 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
                          "above as kd + ks <= 1 needs)"
                        : "");
     std::size_t indirect = 0;
-    for (const SceneView& v : problem.views) indirect += v.seenOnlyIndirectly;
+    for (const SceneView& v : problem.views) indirect += v.offMaterials;
     const std::string leftOut =
         problem.views[0].depthNote +
-        (indirect > 0
-             ? fmt::format("; {} pixels that see the fitted materials only through other surfaces",
-                           indirect)
-             : "");
+        (indirect > 0 ? fmt::format("; {} pixels off the fitted materials (seeing them only "
+                                    "through other surfaces, if at all)",
+                                    indirect)
+                      : "");
     fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
                result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
                result.converged ? fmt::format(" (converged{})", convergedHow(result))

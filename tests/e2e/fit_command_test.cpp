@@ -67,13 +67,21 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
     EXPECT_TRUE(report["rmse"].is_number());
     EXPECT_GE(report["rounds"].size(), 1u);
     EXPECT_TRUE(report["rounds"][0]["time_s"].is_number());
+    // The pixels off the sphere (the background) are left out and record no path.
+    const auto& view = report["views"][0];
+    const std::size_t off = view["pixels_off_the_materials"].get<std::size_t>();
+    EXPECT_GT(off, 0u);
+    EXPECT_EQ(view["pixels_masked"].get<std::size_t>() + view["pixels_clipped"].get<std::size_t>() +
+                  view["pixels_non_finite"].get<std::size_t>(),
+              0u);
+    const std::size_t kept = kSize * kSize - off;
     for (const auto& round : report["rounds"]) {
         // Two path sets, each with at least a background colour and a term index per pixel.
         const auto recorded = round["recorded_bytes"].get<std::size_t>();
         EXPECT_GE(recorded, 2u * kSize * kSize * (3 * sizeof(float) + sizeof(std::uint32_t)));
         EXPECT_GT(round["peak_memory_bytes"].get<std::size_t>(), recorded);
-        // Two sets of 4 paths per pixel.
-        EXPECT_EQ(round["paths"].get<std::size_t>(), 2u * 4 * kSize * kSize);
+        // Two sets of 4 paths per pixel kept.
+        EXPECT_EQ(round["paths"].get<std::size_t>(), 2u * 4 * kept);
     }
     // At the default --precision a converged fit met it or the images' noise floor.
     const std::string stop = report["stop_reason"];
@@ -157,7 +165,8 @@ TEST_F(FitCommand, MaxMemoryTooSmallFailsBeforeRecording) {
 
 // A recording whose forecast (the renderer's pilot) exceeds what --max-memory leaves after the
 // fit's state is refused before tracing, naming the paths, the film and the bytes: 1024 paths a
-// pixel of a 400x400 film forecast about 5 GB, under half this machine's memory but over 2 GB.
+// pixel in the 51016 pixels on the sphere of a 400x400 film (the rest record none) forecast about
+// 2.8 GB, under half this machine's memory but over 2 GB.
 TEST_F(FitCommand, MaxMemoryRefusesARecordingThatWouldNotFit) {
     // test::runProcess, not run(): this film is not kSize wide.
     const std::vector<std::string> film = {"-D", "width=400", "-D", "height=400"};
@@ -171,7 +180,8 @@ TEST_F(FitCommand, MaxMemoryRefusesARecordingThatWouldNotFit) {
     args.insert(args.end(), film.begin(), film.end());
     const auto r = test::runProcess(args);
     EXPECT_NE(r.exitCode, 0);
-    EXPECT_NE(r.err.find("recording 1024 paths per pixel of the 400x400 film"), std::string::npos)
+    EXPECT_NE(r.err.find("recording 1024 paths per pixel of the 400x400 film (in "),
+              std::string::npos)
         << r.err;
     EXPECT_NE(r.err.find("GB left for it"), std::string::npos) << r.err;
     EXPECT_FALSE(std::filesystem::exists(path("big_recording/fit.json")));
