@@ -95,8 +95,7 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
             term.constant = (term.constant.cast<double>() * rescale(p)).cast<float>();
             set.terms[nextTerm[p]++] = term;
         }
-        freed += record.terms.capacity() * sizeof(PathTerm) +
-                 record.vertices.capacity() * sizeof(PathVertex);
+        freed += heapCapacityBytes(record.terms) + heapCapacityBytes(record.vertices);
         record = {};
         if (freed >= trimEvery) {
             malloc_trim(0);

@@ -101,18 +101,22 @@ RenderResult Renderer::render(const RenderOptions& options) const {
     return film.result(std::move(stats));
 }
 
-std::vector<std::uint8_t> Renderer::seenDirectly(const std::vector<int>& bsdfs, int threads) const {
+std::vector<std::uint8_t> seesAny(const std::vector<int>& bsdfSeen, const std::vector<int>& bsdfs) {
+    std::vector<std::uint8_t> sees(bsdfSeen.size());
+    for (std::size_t p = 0; p < bsdfSeen.size(); ++p)
+        sees[p] = std::find(bsdfs.begin(), bsdfs.end(), bsdfSeen[p]) != bsdfs.end();
+    return sees;
+}
+
+std::vector<int> Renderer::bsdfSeen(int threads) const {
     const int width = camera_.width(), height = camera_.height();
-    std::vector<std::uint8_t> seen(std::size_t(width) * std::size_t(height), 0);
+    std::vector<int> seen(std::size_t(width) * std::size_t(height), -1);
     runInArena(threads, [&] {
         tbb::parallel_for(0, height, [&](int y) {
-            for (int x = 0; x < width; ++x) {
-                const std::optional<Hit> hit =
-                    geometry_->intersect(camera_.generateRay(x + 0.5, y + 0.5));
-                seen[std::size_t(y) * width + x] =
-                    hit && std::find(bsdfs.begin(), bsdfs.end(), scene_.shapes[hit->shape].bsdf) !=
-                               bsdfs.end();
-            }
+            for (int x = 0; x < width; ++x)
+                if (const std::optional<Hit> hit =
+                        geometry_->intersect(camera_.generateRay(x + 0.5, y + 0.5)))
+                    seen[std::size_t(y) * width + x] = scene_.shapes[hit->shape].bsdf;
         });
     });
     return seen;
@@ -140,7 +144,12 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     const std::size_t pixels = std::size_t(width) * height;
     std::vector<int> paths(pixels, options.spp);
     if (options.directSpp > options.spp) {
-        const std::vector<std::uint8_t> direct = seenDirectly(options.fittedBsdfs, options.threads);
+        std::vector<std::uint8_t> found;
+        if (options.direct.empty()) found = seesAny(bsdfSeen(options.threads), options.fittedBsdfs);
+        const std::span<const std::uint8_t> direct = found.empty() ? options.direct : found;
+        if (direct.size() != pixels)
+            throw Error(fmt::format("record: {} direct-pixel flags given for a {}x{} film",
+                                    direct.size(), width, height));
         for (std::size_t p = 0; p < pixels; ++p)
             if (direct[p]) paths[p] = options.directSpp;
     }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -48,8 +49,11 @@ struct RecordOptions {
     // Per pixel (width x height, each >= 0), paths on top of spp and directSpp; empty: none.
     std::vector<int> extraPaths;
     // Per pixel (width x height): 0 records no path there (a pixel the fit leaves out); empty:
-    // every pixel records.
-    std::vector<std::uint8_t> recorded;
+    // every pixel records. Viewed, not copied: the caller keeps it alive through record().
+    std::span<const std::uint8_t> recorded;
+    // Per pixel (width x height): 1 where the centre sees a fitted material (bsdfSeen), the
+    // pixels directSpp applies to. Empty: found anew when directSpp asks.
+    std::span<const std::uint8_t> direct;
     std::uint64_t seed = 0;
     std::optional<PixelSamplerType> pixelSampler;  // unset: the scene's
     int threads = 0;
@@ -71,6 +75,9 @@ struct RecordResult {
     RenderStats stats;
 };
 
+// Per pixel of a Renderer::bsdfSeen map: 1 where the bsdf seen is one of `bsdfs`.
+std::vector<std::uint8_t> seesAny(const std::vector<int>& bsdfSeen, const std::vector<int>& bsdfs);
+
 class Renderer {
 public:
     explicit Renderer(Scene scene);
@@ -83,9 +90,9 @@ public:
     // The depth the options ask for, resolved against the scene's integrator.
     int effectiveMaxDepth(int requested) const;
 
-    // Per pixel of the film (row-major), 1 where the ray through the pixel's centre first hits a
-    // shape whose bsdf is one of `bsdfs` (scene bsdf indices), else 0.
-    std::vector<std::uint8_t> seenDirectly(const std::vector<int>& bsdfs, int threads) const;
+    // Per pixel of the film (row-major), the scene bsdf index of the shape the ray through the
+    // pixel's centre first hits; -1 where it hits none.
+    std::vector<int> bsdfSeen(int threads) const;
 
 private:
     // The tile loop over this scene's film; `pixelSampler` unset: the scene's.

@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <new>
+#include <vector>
 
 namespace phongfit {
 
@@ -47,5 +48,13 @@ public:
         return true;
     }
 };
+
+// Bytes of `v`'s capacity that came from the heap (0 when mapped: munmap has returned those).
+template <typename T>
+std::size_t heapCapacityBytes(const std::vector<T, MappedAllocator<T>>& v) noexcept {
+    if (v.capacity() == 0) return 0;
+    const auto* header = reinterpret_cast<const detail::MappedBlockHeader*>(v.data()) - 1;
+    return header->mapped ? 0 : v.capacity() * sizeof(T);
+}
 
 }  // namespace phongfit

@@ -1,5 +1,5 @@
 // The pixels a scene fit uses: those that see a fitted material directly, through their footprint
-// (Renderer::seenDirectly, leaveOutIndirectPixels in scene_fit.cpp), and recordings that trace no
+// (Renderer::bsdfSeen, leaveOutIndirectPixels in scene_fit.cpp), and recordings that trace no
 // path in the pixels the fit leaves out (RecordOptions::recorded).
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -37,12 +37,12 @@ bool centreRayMeetsTheSphere(int x, int y, int size) {
     return b * b - (oc.squaredNorm() - 0.16) > 0;
 }
 
-TEST(SeenDirectly, IsTheRayThroughEachPixelsCentreMeetingTheMaterial) {
+TEST(BsdfSeen, IsTheRayThroughEachPixelsCentreMeetingTheMaterial) {
     const int size = 64;
     const Renderer renderer(
         loadScene(kCornell, {{"width", std::to_string(size)}, {"height", std::to_string(size)}}));
-    const std::vector<std::uint8_t> seen =
-        renderer.seenDirectly({renderer.scene().findBsdf("sphere")}, 2);
+    const std::vector<int> bsdfs = renderer.bsdfSeen(2);
+    const std::vector<std::uint8_t> seen = seesAny(bsdfs, {renderer.scene().findBsdf("sphere")});
     ASSERT_EQ(seen.size(), std::size_t(size * size));
     int count = 0, differ = 0;
     for (int y = 0; y < size; ++y)
@@ -52,9 +52,13 @@ TEST(SeenDirectly, IsTheRayThroughEachPixelsCentreMeetingTheMaterial) {
         }
     EXPECT_GT(count, 200);
     EXPECT_LE(differ, 2);  // a centre within rounding of the outline, at most
-    // No bsdf: seen nowhere.
-    const std::vector<std::uint8_t> none = renderer.seenDirectly({}, 2);
+    // No bsdf: seen nowhere. Each pixel names a bsdf of the scene (or -1): the walls' too.
+    const std::vector<std::uint8_t> none = seesAny(bsdfs, {});
     EXPECT_EQ(std::count(none.begin(), none.end(), 1), 0);
+    for (int b : bsdfs) ASSERT_TRUE(b >= -1 && b < int(renderer.scene().bsdfs.size())) << b;
+    for (const char* wall : {"white", "red", "green"})
+        EXPECT_GT(std::count(bsdfs.begin(), bsdfs.end(), renderer.scene().findBsdf(wall)), 200)
+            << wall;
 }
 
 TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
@@ -64,12 +68,13 @@ TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
     options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
     options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
     const PathSet all = renderer.record(options).paths;
-    options.recorded.assign(24 * 24, 1);
-    for (std::size_t p = 0; p < options.recorded.size(); p += 3) options.recorded[p] = 0;
+    std::vector<std::uint8_t> recorded(24 * 24, 1);
+    for (std::size_t p = 0; p < recorded.size(); p += 3) recorded[p] = 0;
+    options.recorded = recorded;
     const PathSet some = renderer.record(options).paths;
-    for (std::size_t p = 0; p < options.recorded.size(); ++p) {
+    for (std::size_t p = 0; p < recorded.size(); ++p) {
         const std::uint32_t terms = some.pixelStart[p + 1] - some.pixelStart[p];
-        if (!options.recorded[p]) {
+        if (!recorded[p]) {
             EXPECT_EQ(terms, 0u);
             EXPECT_TRUE((some.background[p] == 0.0f).all());
             EXPECT_EQ(some.pixelPaths.at(p), 0u);
@@ -84,7 +89,29 @@ TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
             ASSERT_EQ(a.vertexCount, b.vertexCount);
         }
     }
-    options.recorded.resize(5);
+    options.recorded = std::span(recorded).first(5);
+    EXPECT_THROW(renderer.record(options), Error);
+}
+
+// directSpp's pixels, given (the fit's map from load time) or found by the recording itself: the
+// same paths. A map of the wrong size is refused.
+TEST(Recording, DirectPixelsGivenOrFoundRecordTheSamePaths) {
+    const Renderer renderer(loadScene(kCornell, {{"width", "20"}, {"height", "20"}}));
+    RecordOptions options;
+    options.spp = 1;
+    options.directSpp = 5;
+    options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
+    options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
+    const PathSet found = renderer.record(options).paths;
+    const std::vector<std::uint8_t> direct = seesAny(renderer.bsdfSeen(1), options.fittedBsdfs);
+    options.direct = direct;
+    const PathSet given = renderer.record(options).paths;
+    EXPECT_EQ(found.pixelPaths, given.pixelPaths);
+    EXPECT_EQ(found.pixelStart, given.pixelStart);
+    for (std::size_t p = 0; p < direct.size(); ++p)
+        EXPECT_EQ(given.pixelPaths[p], direct[p] ? 5u : 1u) << "pixel " << p;
+    EXPECT_GT(std::count(direct.begin(), direct.end(), 1), 10);
+    options.direct = std::span(direct).first(7);
     EXPECT_THROW(renderer.record(options), Error);
 }
 
@@ -117,7 +144,8 @@ protected:
 TEST_F(SceneFitPixels, PixelsThatSeeTheMaterialOnlyIndirectlyAreLeftOut) {
     const SceneFitProblem problem = loadSceneFit(inputs());
     const SceneView& v = problem.views[0];
-    const std::vector<std::uint8_t> seen = v.renderer->seenDirectly(v.fittedBsdfs, 1);
+    const std::vector<std::uint8_t> seen = seesAny(v.renderer->bsdfSeen(1), v.fittedBsdfs);
+    EXPECT_EQ(v.direct, seen);
     std::size_t kept = 0;
     for (int y = 0; y < 48; ++y)
         for (int x = 0; x < 48; ++x) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "atomic_file.h"
 #include "comparison_image.h"
@@ -122,6 +123,12 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
                                 image.width, image.height, v.scenePath, film.width, film.height));
     observe(v, image, in, mask);
     v.renderer = std::make_unique<Renderer>(std::move(scene));
+    const std::vector<int> seen = v.renderer->bsdfSeen(0);
+    v.direct = seesAny(seen, v.fittedBsdfs);
+    v.slotSeen.assign(v.fittedBsdfs.size(), false);
+    for (std::size_t p = 0; p < seen.size(); ++p)
+        for (std::size_t s = 0; s < v.fittedBsdfs.size(); ++s)
+            if (seen[p] == v.fittedBsdfs[s] && v.observation.valid[p]) v.slotSeen[s] = true;
     return v;
 }
 
@@ -130,40 +137,23 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
 // few noisy bounces that pulled the estimate (docs/design/fitter.md, "Pixels that see the
 // materials only indirectly").
 void leaveOutIndirectPixels(std::vector<SceneView>& views, std::size_t materials) {
-    std::vector<std::vector<std::uint8_t>> direct(views.size());
-    std::vector<bool> seen(materials, false);
-    for (std::size_t k = 0; k < views.size(); ++k) {
-        const SceneView& v = views[k];
-        direct[k].assign(v.observation.valid.size(), 0);
-        for (std::size_t s = 0; s < materials; ++s) {
-            const std::vector<std::uint8_t> one = v.renderer->seenDirectly({v.fittedBsdfs[s]}, 0);
-            for (std::size_t p = 0; p < one.size(); ++p)
-                if (one[p] && v.observation.valid[p]) {
-                    direct[k][p] = 1;
-                    seen[s] = true;
-                }
-        }
-    }
-    if (std::find(seen.begin(), seen.end(), false) != seen.end()) return;
-    for (std::size_t k = 0; k < views.size(); ++k) {
-        SceneView& v = views[k];
+    for (std::size_t s = 0; s < materials; ++s)
+        if (std::none_of(views.begin(), views.end(),
+                         [&](const SceneView& v) { return v.slotSeen[s]; }))
+            return;
+    for (SceneView& v : views) {
         const SensorDesc& film = v.renderer->scene().sensor;
         // A pixel's samples reach this far from its centre (the Gaussian's 3 standard deviations).
         const int radius = film.filter == SensorDesc::Filter::Box
                                ? 1
                                : std::max(1, int(std::ceil(3 * film.gaussianStddev + 0.5)));
-        const int width = v.observation.width, height = v.observation.height;
-        for (int y = 0; y < height; ++y)
-            for (int x = 0; x < width; ++x) {
-                const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
-                if (!v.observation.valid[p]) continue;
-                bool near = false;
-                for (int yy = std::max(y - radius, 0);
-                     !near && yy <= std::min(y + radius, height - 1); ++yy)
-                    for (int xx = std::max(x - radius, 0);
-                         !near && xx <= std::min(x + radius, width - 1); ++xx)
-                        near = direct[k][std::size_t(yy) * std::size_t(width) + std::size_t(xx)];
-                if (near) continue;
+        // The direct pixels the fit keeps, widened by that reach.
+        cv::Mat near(v.observation.height, v.observation.width, CV_8U);
+        for (std::size_t p = 0; p < v.direct.size(); ++p)
+            near.data[p] = v.direct[p] && v.observation.valid[p];
+        cv::dilate(near, near, cv::Mat::ones(2 * radius + 1, 2 * radius + 1, CV_8U));
+        for (std::size_t p = 0; p < v.direct.size(); ++p)
+            if (v.observation.valid[p] && !near.data[p]) {
                 v.observation.valid[p] = 0;
                 ++v.offMaterials;
             }
@@ -256,6 +246,7 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
             o.extraPaths = allocatePaths(importance, extra * double(seen), kMostExtraPaths);
         }
         o.recorded = v.observation.valid;  // the pixels the fit leaves out need no paths
+        o.direct = v.direct;
         o.seed = recording.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
         o.threads = recording.threads;
         o.maxDepth = v.maxDepth;

@@ -49,6 +49,11 @@ struct SceneView {
     bool deltaLightsOnly = false;
     Observation observation;
     std::size_t clipped = 0, masked = 0, nonFinite = 0;
+    // Per pixel: 1 where the ray through its centre first meets a fitted material
+    // (Renderer::bsdfSeen); where RecordOptions::directSpp applies.
+    std::vector<std::uint8_t> direct;
+    // Per slot: seen directly in a pixel the fit keeps (checked before any is left out below).
+    std::vector<bool> slotSeen;
     // Left out: pixels whose footprint is off every fitted material, where the materials are seen
     // directly (loadSceneFit): they see them only through other surfaces, if at all.
     std::size_t offMaterials = 0;
