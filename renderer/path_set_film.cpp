@@ -30,12 +30,12 @@ void PathSetFilm::Sample::add(const Color3& c, std::span<const PathVertex> verti
     }
     record_.terms.push_back(PathTerm{pixel_, std::uint32_t(record_.vertices.size()),
                                      std::uint32_t(vertices.size()), (c * scale_).cast<float>()});
-    record_.vertices.insert(record_.vertices.end(), vertices.begin(), vertices.end());
+    record_.vertices.append(vertices);
 }
 
 void PathSetFilm::Sample::drop() {
-    record_.terms.resize(termsBefore_);
-    record_.vertices.resize(verticesBefore_);
+    record_.terms.truncate(termsBefore_);
+    record_.vertices.truncate(verticesBefore_);
     film_.background_[pixel_] = backgroundBefore_;
 }
 
@@ -66,7 +66,8 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.pixelStart.assign(pixels + 1, 0);
     std::vector<std::uint32_t> nextVertex(pixels + 1, 0);
     for (const TileRecord& record : tiles_)
-        for (const PathTerm& term : record.terms) {
+        for (std::size_t i = 0; i < record.terms.size(); ++i) {
+            const PathTerm& term = record.terms[i];
             ++set.pixelStart[term.pixel + 1];
             nextVertex[term.pixel + 1] += term.vertexCount;
         }
@@ -78,29 +79,35 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.vertices.resize(nextVertex[pixels]);
     std::vector<std::uint32_t> nextTerm(set.pixelStart.begin(), set.pixelStart.end() - 1);
     // The set's pages become resident as they are written (DefaultInitAllocator), in tile order,
-    // while each tile's record is freed once copied (mapped records leave the resident set at
-    // once, the small ones from the heap are handed back to the system every sixteenth of the
-    // paths): the peak stays near one copy of the paths, not two.
+    // while each record hands back its blocks once copied (mapped ones leave the resident set at
+    // once, any from the heap are handed back to the system every sixteenth of the paths): the
+    // peak stays near one copy of the paths, not two.
     const std::size_t trimEvery = std::max<std::size_t>(
         (set.terms.size() * sizeof(PathTerm) + set.vertices.size() * sizeof(PathVertex)) / 16,
         std::size_t(1) << 20);
-    std::size_t freed = 0;
+    std::size_t heapFreed = 0;
+    const auto handBack = [&](TileRecord& record, std::size_t terms, std::size_t vertices) {
+        heapFreed += record.terms.releaseBefore(terms) + record.vertices.releaseBefore(vertices);
+        if (heapFreed >= trimEvery) {
+            malloc_trim(0);
+            heapFreed = 0;
+        }
+    };
     for (TileRecord& record : tiles_) {
-        for (PathTerm term : record.terms) {
+        for (std::size_t i = 0; i < record.terms.size(); ++i) {
+            PathTerm term = record.terms[i];
             const std::uint32_t p = term.pixel;
-            const auto first = record.vertices.begin() + term.firstVertex;
-            std::copy(first, first + term.vertexCount, set.vertices.begin() + nextVertex[p]);
+            // Vertices follow their terms in a record: those before this term's end are copied.
+            const std::size_t copied = std::size_t(term.firstVertex) + term.vertexCount;
+            for (std::uint32_t v = 0; v < term.vertexCount; ++v)
+                set.vertices[nextVertex[p] + v] = record.vertices[term.firstVertex + v];
             term.firstVertex = nextVertex[p];
             nextVertex[p] += term.vertexCount;
             term.constant = (term.constant.cast<double>() * rescale(p)).cast<float>();
             set.terms[nextTerm[p]++] = term;
+            if ((i + 1) % BlockArray<PathTerm>::kBlock == 0) handBack(record, i + 1, copied);
         }
-        freed += heapCapacityBytes(record.terms) + heapCapacityBytes(record.vertices);
-        record = {};
-        if (freed >= trimEvery) {
-            malloc_trim(0);
-            freed = 0;
-        }
+        handBack(record, std::size_t(-1), std::size_t(-1));
     }
     tiles_.clear();
     return set;

@@ -9,16 +9,17 @@
 #include <span>
 #include <vector>
 
-#include "mapped_allocator.h"
+#include "block_array.h"
 #include "path_set.h"
 
 namespace phongfit {
 
 class PathSetFilm {
     struct TileRecord {
-        // Mapped: the records of all tiles grow side by side (mapped_allocator.h).
-        std::vector<PathTerm, MappedAllocator<PathTerm>> terms;         // in the order traced;
-        std::vector<PathVertex, MappedAllocator<PathVertex>> vertices;  // firstVertex into these
+        // In blocks: the records of all tiles grow side by side, and are copied into the set
+        // block by block (block_array.h).
+        BlockArray<PathTerm> terms;       // in the order traced;
+        BlockArray<PathVertex> vertices;  // firstVertex into these
     };
 
 public:
@@ -51,7 +52,7 @@ public:
 
     // Bytes a recording holding `terms` terms with `vertices` vertices in all needs at its peak: an
     // upper bound, as if the tiles' records and the assembled set coexisted in full (assemble
-    // frees the records as it goes: about 1.4x the paths measured, see RecordingMemory).
+    // frees the records as it goes: about 1.0x the paths measured, see RecordingMemory).
     static double peakBytes(std::size_t pixels, double terms, double vertices);
 
 private:

@@ -9,7 +9,6 @@
 
 #include <cstddef>
 #include <new>
-#include <vector>
 
 namespace phongfit {
 
@@ -21,6 +20,10 @@ struct alignas(16) MappedBlockHeader {
 void* allocateMaybeMapped(std::size_t bytes);
 void deallocateMaybeMapped(void* elements, std::size_t bytes) noexcept;
 int liveMappings();  // how many blocks are mapped now
+// Whether a block MappedAllocator gave came from the system (else from the heap).
+inline bool blockIsMapped(const void* elements) noexcept {
+    return (static_cast<const MappedBlockHeader*>(elements) - 1)->mapped;
+}
 }  // namespace detail
 
 template <typename T>
@@ -48,13 +51,5 @@ public:
         return true;
     }
 };
-
-// Bytes of `v`'s capacity that came from the heap (0 when mapped: munmap has returned those).
-template <typename T>
-std::size_t heapCapacityBytes(const std::vector<T, MappedAllocator<T>>& v) noexcept {
-    if (v.capacity() == 0) return 0;
-    const auto* header = reinterpret_cast<const detail::MappedBlockHeader*>(v.data()) - 1;
-    return header->mapped ? 0 : v.capacity() * sizeof(T);
-}
 
 }  // namespace phongfit

@@ -173,17 +173,18 @@ double recordingPeak(int size, int spp) {
 }
 
 // Few tiles with big records (40x40 film, 9 tiles): 2.22 times the paths before the set was
-// filled in tile order, 1.39-1.44 after.
+// filled in tile order, 1.39-1.44 after, 1.16 with records in blocks copied and handed back block
+// by block (block_array.h): a vector's doubling and a tile held twice while copied are gone.
 TEST(RecordingMemory, PeakIsAboutOneCopyOfThePaths) {
 #if defined(__SANITIZE_ADDRESS__)
     GTEST_SKIP() << "AddressSanitizer keeps freed memory in quarantine: the resident set measures "
                     "its allocator, not the recording";
 #endif
-    EXPECT_LT(recordingPeak(40, 2048), 1.6);
+    EXPECT_LT(recordingPeak(40, 2048), 1.25);
 }
 
 // Many tiles with small records growing side by side (256x256, 256 tiles): 1.42 times the paths
-// while the records came from the heap, 1.11 mapped (mapped_allocator.h).
+// while the records came from the heap, 1.11 mapped (mapped_allocator.h), 1.12 in blocks.
 TEST(RecordingMemory, ManySmallTileRecordsLeaveNoSlack) {
 #if defined(__SANITIZE_ADDRESS__)
     GTEST_SKIP() << "AddressSanitizer keeps freed memory in quarantine: the resident set measures "
