@@ -31,17 +31,18 @@ struct CountingSink {
 // Bytes a recording needs at its peak, from a pilot of one path in each of up to 4096 pixels
 // spread over the film, each standing for its share of the film at its pixel's paths.
 double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
-                      const SensorDesc& sensor, PixelSamplerType type, std::uint64_t seed,
-                      const std::vector<int>& paths) {
-    const std::size_t pixels = std::size_t(camera.width()) * camera.height();
+                      const SensorDesc& sensor, const FilmWindow& window, PixelSamplerType type,
+                      std::uint64_t seed, const std::vector<int>& paths) {
+    const std::size_t pixels = window.pixels();
     const std::size_t pilots = std::min<std::size_t>(pixels, 4096);
     double terms = 0, vertices = 0;
     std::uint64_t rays = 0;
     for (std::size_t k = 0; k < pilots; ++k) {
         const std::size_t p = k * pixels / pilots;
         if (paths[p] == 0) continue;
-        const int x = int(p % camera.width()), y = int(p / camera.width());
-        const PixelSampler rng(type, seed, std::uint32_t(p));
+        const int x = window.x0 + int(p % std::size_t(window.width)),
+                  y = window.y0 + int(p / std::size_t(window.width));
+        const PixelSampler rng(type, seed, std::uint32_t(y) * camera.width() + std::uint32_t(x));
         const Vec2d u = rng.get2D(0, 0);
         const Vec2d film = filmPosition(sensor, x, y, u.x(), u.y());
         CountingSink sink;
@@ -68,12 +69,13 @@ int Renderer::effectiveMaxDepth(int requested) const {
     return scene_.integrator.type == "direct" ? 2 : scene_.integrator.maxDepth;
 }
 
-TileLoop Renderer::tileLoop(const PathIntegrator& integrator,
+TileLoop Renderer::tileLoop(const PathIntegrator& integrator, const FilmWindow& window,
                             std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed,
                             int threads, int samples) const {
     return TileLoop{.integrator = integrator,
                     .camera = camera_,
                     .sensor = scene_.sensor,
+                    .window = window,
                     .pixelSampler = pixelSampler.value_or(scene_.sensor.pixelSampler),
                     .seed = seed,
                     .threads = threads,
@@ -93,7 +95,8 @@ RenderResult Renderer::render(const RenderOptions& options) const {
     const int width = camera_.width(), height = camera_.height();
     RgbFilm film(width, height, spp);
     Progress progress("render", std::uint64_t(spp) * width * height, "samples", options.quiet);
-    TileLoop loop = tileLoop(integrator, options.pixelSampler, options.seed, options.threads, spp);
+    TileLoop loop = tileLoop(integrator, {0, 0, width, height}, options.pixelSampler, options.seed,
+                             options.threads, spp);
     loop.progress = &progress;
     RenderStats stats = traceTiles(loop, film);
     progress.finish();
@@ -138,14 +141,24 @@ RecordResult Renderer::record(const RecordOptions& options) const {
         scene_, *geometry_, *lights_, materials, slots, *sampler, defensive,
         {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, true});
 
+    const FilmWindow window = options.window.width > 0
+                                  ? options.window
+                                  : FilmWindow{0, 0, camera_.width(), camera_.height()};
+    if (window.x0 < 0 || window.y0 < 0 || window.width <= 0 || window.height <= 0 ||
+        window.x0 + window.width > camera_.width() || window.y0 + window.height > camera_.height())
+        throw Error(fmt::format("record: window {}x{} at ({}, {}) is not within the {}x{} film",
+                                window.width, window.height, window.x0, window.y0, camera_.width(),
+                                camera_.height()));
     // Paths per pixel, fixed before tracing rather than decided by the pixel's own samples, so
     // every pixel's estimate stays unbiased.
-    const int width = camera_.width(), height = camera_.height();
-    const std::size_t pixels = std::size_t(width) * height;
+    const int width = window.width, height = window.height;
+    const std::size_t pixels = window.pixels();
     std::vector<int> paths(pixels, options.spp);
     if (options.directSpp > options.spp) {
         std::vector<std::uint8_t> found;
-        if (options.direct.empty()) found = seesAny(bsdfSeen(options.threads), options.fittedBsdfs);
+        if (options.direct.empty())
+            found = cropped(seesAny(bsdfSeen(options.threads), options.fittedBsdfs),
+                            camera_.width(), window);
         const std::span<const std::uint8_t> direct = found.empty() ? options.direct : found;
         if (direct.size() != pixels)
             throw Error(fmt::format("record: {} direct-pixel flags given for a {}x{} film",
@@ -179,12 +192,14 @@ RecordResult Renderer::record(const RecordOptions& options) const {
         pixels - std::size_t(std::count(paths.begin(), paths.end(), 0));
     const double meanPaths = std::accumulate(paths.begin(), paths.end(), 0.0) /
                              double(std::max<std::size_t>(recordedPixels, 1));
-    const double bytes =
-        recordingBytes(integrator, camera_, scene_.sensor, pixelSampler, options.seed, paths);
-    const std::string what = fmt::format(
-        "recording {:.0f} paths per pixel of the {}x{} film{}", meanPaths, width, height,
-        recordedPixels < pixels ? fmt::format(" (in {} of its pixels)", recordedPixels)
-                                : std::string());
+    const double bytes = recordingBytes(integrator, camera_, scene_.sensor, window, pixelSampler,
+                                        options.seed, paths);
+    const std::string what =
+        fmt::format("recording {:.0f} paths per pixel of the {}x{} film{}", meanPaths,
+                    camera_.width(), camera_.height(),
+                    recordedPixels < std::size_t(camera_.width()) * std::size_t(camera_.height())
+                        ? fmt::format(" (in {} of its pixels)", recordedPixels)
+                        : std::string());
     const double half = 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     if (bytes > half)
         throw Error(fmt::format(
@@ -200,8 +215,8 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     const int most = *std::max_element(paths.begin(), paths.end());
     PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size());
     RecordResult result;
-    result.stats =
-        traceTiles(tileLoop(integrator, pixelSampler, options.seed, options.threads, most), film);
+    result.stats = traceTiles(
+        tileLoop(integrator, window, pixelSampler, options.seed, options.threads, most), film);
     result.stats.spp = options.spp;
     result.paths = film.assemble(options.spp, int(options.fittedBsdfs.size()));
     return result;

@@ -16,6 +16,7 @@
 #include "path_set.h"
 #include "render_stats.h"
 #include "scene.h"
+#include "tile_loop.h"
 
 namespace phongfit {
 
@@ -54,6 +55,9 @@ struct RecordOptions {
     // Per pixel (width x height): 1 where the centre sees a fitted material (bsdfSeen), the
     // pixels directSpp applies to. Empty: found anew when directSpp asks.
     std::span<const std::uint8_t> direct;
+    // The part of the film recorded (width 0: all of it). The set, and every per-pixel input above,
+    // is the window's size, pixels numbered from its corner.
+    FilmWindow window;
     std::uint64_t seed = 0;
     std::optional<PixelSamplerType> pixelSampler;  // unset: the scene's
     int threads = 0;
@@ -96,7 +100,7 @@ public:
 
 private:
     // The tile loop over this scene's film; `pixelSampler` unset: the scene's.
-    TileLoop tileLoop(const PathIntegrator& integrator,
+    TileLoop tileLoop(const PathIntegrator& integrator, const FilmWindow& window,
                       std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed, int threads,
                       int samples) const;
 

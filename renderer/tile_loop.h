@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "camera.h"
+#include "film_window.h"
 #include "path_integrator.h"
 #include "progress.h"
 #include "render_stats.h"
@@ -60,6 +61,7 @@ struct TileLoop {
     const PathIntegrator& integrator;
     const Camera& camera;
     const SensorDesc& sensor;
+    FilmWindow window;  // what is traced; its films are this size
     PixelSamplerType pixelSampler = PixelSamplerType::Independent;
     std::uint64_t seed = 0;
     int threads = 0;               // 0: all hardware threads
@@ -81,7 +83,8 @@ struct SummingSink {
 };
 }  // namespace detail
 
-// Feeds `film`, which provides, for pixel p = y * width + x of the camera's film:
+// Feeds `film`, which provides, for pixel p = y * width + x of the loop's window (x, y from its
+// corner):
 //   int samples(std::uint32_t p) const: how many samples p takes in all (at most loop.samples);
 //   startSample(std::size_t tile, std::uint32_t p): a sink for one sample of p in tile `tile`
 //     (an index into makeTiles), add(const Color3&, std::span<const PathVertex>) as the
@@ -90,8 +93,8 @@ struct SummingSink {
 template <typename Film>
 RenderStats traceTiles(const TileLoop& loop, Film& film) {
     const auto start = std::chrono::steady_clock::now();
-    const int width = loop.camera.width();
-    const std::vector<Tile> tiles = makeTiles(width, loop.camera.height());
+    const FilmWindow& window = loop.window;
+    const std::vector<Tile> tiles = makeTiles(window.width, window.height);
     tbb::combinable<std::uint64_t> rays([] { return std::uint64_t(0); });
     tbb::combinable<std::uint64_t> kept([] { return std::uint64_t(0); });
     tbb::combinable<std::uint64_t> dropped([] { return std::uint64_t(0); });
@@ -111,10 +114,14 @@ RenderStats traceTiles(const TileLoop& loop, Film& film) {
                         if (stoppable && stopRequested()) return;
                         const Tile& tile = tiles[t];
                         std::uint64_t traced = 0;
-                        for (int y = tile.y0; y < tile.y1; ++y)
-                            for (int x = tile.x0; x < tile.x1; ++x) {
-                                const std::uint32_t p = std::uint32_t(y) * width + x;
-                                const PixelSampler rng(loop.pixelSampler, loop.seed, p);
+                        for (int y = window.y0 + tile.y0; y < window.y0 + tile.y1; ++y)
+                            for (int x = window.x0 + tile.x0; x < window.x0 + tile.x1; ++x) {
+                                const std::uint32_t p =
+                                    std::uint32_t(y - window.y0) * window.width +
+                                    std::uint32_t(x - window.x0);
+                                const PixelSampler rng(
+                                    loop.pixelSampler, loop.seed,
+                                    std::uint32_t(y) * loop.camera.width() + std::uint32_t(x));
                                 const int end = std::min(s1, film.samples(p));
                                 for (int s = s0; s < end; ++s, ++traced) {
                                     const Vec2d u = rng.get2D(s, 0);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <numeric>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
@@ -37,6 +38,16 @@ bool centreRayMeetsTheSphere(int x, int y, int size) {
     return b * b - (oc.squaredNorm() - 0.16) > 0;
 }
 
+// A recording of the Cornell box's sphere at its scene parameters.
+RecordOptions sphereRecording(const Renderer& renderer, int spp, int directSpp) {
+    RecordOptions options;
+    options.spp = spp;
+    options.directSpp = directSpp;
+    options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
+    options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
+    return options;
+}
+
 TEST(BsdfSeen, IsTheRayThroughEachPixelsCentreMeetingTheMaterial) {
     const int size = 64;
     const Renderer renderer(
@@ -63,10 +74,7 @@ TEST(BsdfSeen, IsTheRayThroughEachPixelsCentreMeetingTheMaterial) {
 
 TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
     const Renderer renderer(loadScene(kCornell, {{"width", "24"}, {"height", "24"}}));
-    RecordOptions options;
-    options.spp = 3;
-    options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
-    options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
+    RecordOptions options = sphereRecording(renderer, 3, 0);
     const PathSet all = renderer.record(options).paths;
     std::vector<std::uint8_t> recorded(24 * 24, 1);
     for (std::size_t p = 0; p < recorded.size(); p += 3) recorded[p] = 0;
@@ -97,11 +105,7 @@ TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
 // same paths. A map of the wrong size is refused.
 TEST(Recording, DirectPixelsGivenOrFoundRecordTheSamePaths) {
     const Renderer renderer(loadScene(kCornell, {{"width", "20"}, {"height", "20"}}));
-    RecordOptions options;
-    options.spp = 1;
-    options.directSpp = 5;
-    options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
-    options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
+    RecordOptions options = sphereRecording(renderer, 1, 5);
     const PathSet found = renderer.record(options).paths;
     const std::vector<std::uint8_t> direct = seesAny(renderer.bsdfSeen(1), options.fittedBsdfs);
     options.direct = direct;
@@ -113,6 +117,80 @@ TEST(Recording, DirectPixelsGivenOrFoundRecordTheSamePaths) {
     EXPECT_GT(std::count(direct.begin(), direct.end(), 1), 10);
     options.direct = std::span(direct).first(7);
     EXPECT_THROW(renderer.record(options), Error);
+}
+
+// A window of the film records, pixel for pixel, the paths the whole film records there; the
+// set is the window's size. A window outside the film is refused.
+TEST(Recording, AWindowRecordsTheWholeFilmsPathsInItsPixels) {
+    const Renderer renderer(loadScene(kCornell, {{"width", "40"}, {"height", "36"}}));
+    RecordOptions options = sphereRecording(renderer, 2, 6);
+    const PathSet all = renderer.record(options).paths;
+    const FilmWindow w{7, 5, 19, 23};
+    options.window = w;
+    const PathSet part = renderer.record(options).paths;
+    ASSERT_EQ(part.width, w.width);
+    ASSERT_EQ(part.height, w.height);
+    ASSERT_EQ(part.pixelStart.size(), w.pixels() + 1);
+    std::size_t terms = 0;
+    for (int y = 0; y < w.height; ++y)
+        for (int x = 0; x < w.width; ++x) {
+            const std::size_t q = std::size_t(y * w.width + x),
+                              p = std::size_t((y + w.y0) * 40 + x + w.x0);
+            EXPECT_TRUE((part.background[q] == all.background[p]).all()) << x << ", " << y;
+            if (!all.pixelPaths.empty()) {
+                EXPECT_EQ(part.pixelPaths.at(q), all.pixelPaths[p]);
+            }
+            const std::uint32_t n = part.pixelStart[q + 1] - part.pixelStart[q];
+            ASSERT_EQ(n, all.pixelStart[p + 1] - all.pixelStart[p]) << x << ", " << y;
+            for (std::uint32_t k = 0; k < n; ++k) {
+                const PathTerm &a = all.terms[all.pixelStart[p] + k],
+                               &b = part.terms[part.pixelStart[q] + k];
+                ASSERT_TRUE((a.constant == b.constant).all());
+                ASSERT_EQ(b.pixel, q);
+                ASSERT_EQ(a.vertexCount, b.vertexCount);
+                for (std::uint32_t v = 0; v < a.vertexCount; ++v) {
+                    ASSERT_EQ(all.vertices[a.firstVertex + v].logCos,
+                              part.vertices[b.firstVertex + v].logCos);
+                    ASSERT_EQ(all.vertices[a.firstVertex + v].slot,
+                              part.vertices[b.firstVertex + v].slot);
+                }
+            }
+            terms += n;
+        }
+    EXPECT_GT(terms, 500u);
+    options.window = {30, 0, 11, 36};
+    EXPECT_THROW(renderer.record(options), Error);
+    options.window = {-1, 0, 10, 10};
+    EXPECT_THROW(renderer.record(options), Error);
+}
+
+// The bounding window of a pixel mask, and crops of film-sized arrays.
+TEST(FilmWindow, BoundsTheFlaggedPixelsAndCropsToThem) {
+    std::vector<std::uint8_t> flags(6 * 5, 0);
+    flags[1 * 6 + 2] = flags[3 * 6 + 4] = 1;
+    const FilmWindow w = boundingWindow(flags, 6, 5);
+    EXPECT_EQ(w.x0, 2);
+    EXPECT_EQ(w.y0, 1);
+    EXPECT_EQ(w.width, 3);
+    EXPECT_EQ(w.height, 3);
+    const FilmWindow wide = widened(w, 2, 6, 5);  // clipped by the film on three sides
+    EXPECT_EQ(wide.x0, 0);
+    EXPECT_EQ(wide.y0, 0);
+    EXPECT_EQ(wide.width, 6);
+    EXPECT_EQ(wide.height, 5);
+    const FilmWindow one = widened(w, 1, 6, 5);
+    EXPECT_EQ(one.x0, 1);
+    EXPECT_EQ(one.width, 5);
+    EXPECT_EQ(one.height, 5);
+    const FilmWindow none = boundingWindow(std::vector<std::uint8_t>(30, 0), 6, 5);
+    EXPECT_EQ(none.width, 6);
+    EXPECT_EQ(none.height, 5);
+    std::vector<int> rgb(6 * 5 * 3);
+    std::iota(rgb.begin(), rgb.end(), 0);
+    const std::vector<int> c = cropped(rgb, 6, w, 3);
+    ASSERT_EQ(c.size(), 27u);
+    EXPECT_EQ(c[0], (1 * 6 + 2) * 3);
+    EXPECT_EQ(c[26], (3 * 6 + 4) * 3 + 2);
 }
 
 class SceneFitPixels : public ::testing::Test {

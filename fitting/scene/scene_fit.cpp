@@ -13,7 +13,9 @@
 #include "atomic_file.h"
 #include "comparison_image.h"
 #include "error.h"
+#include "film_window.h"
 #include "fit_report.h"
+#include "instruments.h"
 #include "memory_plan.h"
 #include "path_importance.h"
 #include "scene_parser.h"
@@ -222,8 +224,27 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
 
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
                    const FitOptions& options) {
+    // Each view's fit and recordings cover the bounding box of the pixels it uses (film_window.h):
+    // what the fit holds per pixel grows with those, not with the pixels it leaves out.
     std::vector<Observation> observations;
-    for (const SceneView& v : problem.views) observations.push_back(v.observation);
+    std::vector<FilmWindow> windows;
+    std::vector<std::vector<std::uint8_t>> direct;
+    for (const SceneView& v : problem.views) {
+        const Observation& full = v.observation;
+        // Widened by the instruments' reach: a pixel near the edge averages over the same
+        // neighbourhood (used or not) as on the whole film, and gets the same instrument.
+        const FilmWindow w = full.valid.empty()
+                                 ? FilmWindow{0, 0, full.width, full.height}
+                                 : widened(boundingWindow(full.valid, full.width, full.height),
+                                           kInstrumentRadius, full.width, full.height);
+        const auto crop = [&](const auto& film, int channels = 1) {
+            return film.empty() ? film : cropped(film, full.width, w, channels);
+        };
+        observations.push_back(
+            {w.width, w.height, crop(full.rgb, 3), crop(full.valid), crop(full.weight)});
+        windows.push_back(w);
+        direct.push_back(crop(v.direct));
+    }
     const std::size_t state = stateBytes(observations);
     const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta0, int round,
                                     const std::vector<float>& importance,
@@ -245,8 +266,9 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
                 std::count_if(importance.begin(), importance.end(), [](float w) { return w > 0; });
             o.extraPaths = allocatePaths(importance, extra * double(seen), kMostExtraPaths);
         }
-        o.recorded = v.observation.valid;  // the pixels the fit leaves out need no paths
-        o.direct = v.direct;
+        o.window = windows[std::size_t(view)];
+        o.recorded = observations[std::size_t(view)].valid;  // left out: no paths needed
+        o.direct = direct[std::size_t(view)];
         o.seed = recording.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
         o.threads = recording.threads;
         o.maxDepth = v.maxDepth;
