@@ -6,7 +6,6 @@
 #pragma once
 
 #include <algorithm>
-#include <bit>
 #include <cstddef>
 #include <memory>
 #include <span>
@@ -23,8 +22,10 @@ class BlockArray {
     static_assert(std::is_trivially_destructible_v<T>);  // blocks go back without destructors
 
 public:
-    // Elements a block holds: a power of two, so indexing shifts and masks.
-    static constexpr std::size_t kBlock = std::bit_floor((std::size_t(256) << 10) / sizeof(T));
+    // Elements a block holds: with MappedAllocator's header, 256 kB, 64 pages exactly. (A power of
+    // two spilled the header's 16 bytes onto a 65th page: 1.6% of the paths resident for nothing.)
+    static constexpr std::size_t kBlock =
+        ((std::size_t(256) << 10) - sizeof(detail::MappedBlockHeader)) / sizeof(T);
 
     BlockArray() = default;
     BlockArray(const BlockArray&) = delete;
