@@ -72,9 +72,13 @@ double drift(const std::vector<double>& estimates) {
 void widenToDrift(FitResult& result) {
     for (std::size_t s = 0; s < result.materials.size(); ++s) {
         const auto along = [&](auto value) {
+            // A round that kept its start exactly (its solve did not move it) says nothing of the
+            // direction: it does not cut a run of moves short.
             std::vector<double> estimates;
             for (const FitRound& r : result.rounds)
-                if (!r.probe && s < r.materials.size()) estimates.push_back(value(r.materials[s]));
+                if (!r.probe && s < r.materials.size() &&
+                    (estimates.empty() || value(r.materials[s]) != estimates.back()))
+                    estimates.push_back(value(r.materials[s]));
             return drift(estimates);
         };
         MaterialFit& m = result.materials[s];

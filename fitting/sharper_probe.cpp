@@ -60,8 +60,11 @@ void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<Materia
         MaterialFit& c = converged[s];
         const MaterialFit& p = probe[s];
         if (!probed(c) || p.isUnconstrained("n")) continue;
+        // One that cannot tell them apart rules out nothing up to its start, nor within 3 of its
+        // standard errors of where it went (beyond its start, where the lobe may be sharper yet).
+        const double around = std::abs(p.n - c.n) + 3 * p.nStd;
         const double reach =
-            tellsApart(c, p) ? std::abs(p.n - c.n) + 3 * p.nStd : c.n * (probeFactor(c) - 1);
+            tellsApart(c, p) ? around : std::max(around, c.n * (probeFactor(c) - 1));
         c.nStd = std::max(c.nStd, reach);
     }
 }

@@ -34,7 +34,8 @@ bool probeReturned(const std::vector<MaterialFit>& converged,
 
 // For a probe that did not come back and no round after it: each probed lobe's n standard error
 // in `converged` raised to reach every n the probe did not rule out: its n and 3 of its standard
-// errors beyond where it tells the converged n from its start (as probeReturned), else the start.
+// errors beyond, and where it cannot tell the converged n from its start (as probeReturned) at
+// least the start.
 void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
 }  // namespace phongfit
