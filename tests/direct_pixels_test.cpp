@@ -72,6 +72,32 @@ TEST(BsdfSeen, IsTheRayThroughEachPixelsCentreMeetingTheMaterial) {
             << wall;
 }
 
+// Pixel p of set a and pixel q of set b hold the same paths: background, terms and vertices,
+// the first difference reported. Returns the number of terms compared.
+std::uint32_t expectSamePixelPaths(const PathSet& a, std::size_t p, const PathSet& b,
+                                   std::size_t q) {
+    EXPECT_TRUE((a.background[p] == b.background[q]).all()) << "pixel " << p;
+    const std::uint32_t terms = a.pixelStart[p + 1] - a.pixelStart[p];
+    if (terms != b.pixelStart[q + 1] - b.pixelStart[q]) {
+        ADD_FAILURE() << "pixel " << p << ": " << terms << " terms against "
+                      << b.pixelStart[q + 1] - b.pixelStart[q];
+        return 0;
+    }
+    for (std::uint32_t k = 0; k < terms; ++k) {
+        const PathTerm &s = a.terms[a.pixelStart[p] + k], &t = b.terms[b.pixelStart[q] + k];
+        bool same =
+            (s.constant == t.constant).all() && t.pixel == q && s.vertexCount == t.vertexCount;
+        for (std::uint32_t v = 0; same && v < s.vertexCount; ++v)
+            same = a.vertices[s.firstVertex + v].logCos == b.vertices[t.firstVertex + v].logCos &&
+                   a.vertices[s.firstVertex + v].slot == b.vertices[t.firstVertex + v].slot;
+        if (!same) {
+            ADD_FAILURE() << "pixel " << p << ", term " << k << " differs";
+            return 0;
+        }
+    }
+    return terms;
+}
+
 TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
     const Renderer renderer(loadScene(kCornell, {{"width", "24"}, {"height", "24"}}));
     RecordOptions options = sphereRecording(renderer, 3, 0);
@@ -88,14 +114,7 @@ TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
             EXPECT_EQ(some.pixelPaths.at(p), 0u);
             continue;
         }
-        ASSERT_EQ(terms, all.pixelStart[p + 1] - all.pixelStart[p]) << "pixel " << p;
-        EXPECT_TRUE((some.background[p] == all.background[p]).all());
-        for (std::uint32_t k = 0; k < terms; ++k) {
-            const PathTerm &a = all.terms[all.pixelStart[p] + k],
-                           &b = some.terms[some.pixelStart[p] + k];
-            ASSERT_TRUE((a.constant == b.constant).all());
-            ASSERT_EQ(a.vertexCount, b.vertexCount);
-        }
+        expectSamePixelPaths(all, p, some, p);
     }
     options.recorded = std::span(recorded).first(5);
     EXPECT_THROW(renderer.record(options), Error);
@@ -136,26 +155,10 @@ TEST(Recording, AWindowRecordsTheWholeFilmsPathsInItsPixels) {
         for (int x = 0; x < w.width; ++x) {
             const std::size_t q = std::size_t(y * w.width + x),
                               p = std::size_t((y + w.y0) * 40 + x + w.x0);
-            EXPECT_TRUE((part.background[q] == all.background[p]).all()) << x << ", " << y;
             if (!all.pixelPaths.empty()) {
                 EXPECT_EQ(part.pixelPaths.at(q), all.pixelPaths[p]);
             }
-            const std::uint32_t n = part.pixelStart[q + 1] - part.pixelStart[q];
-            ASSERT_EQ(n, all.pixelStart[p + 1] - all.pixelStart[p]) << x << ", " << y;
-            for (std::uint32_t k = 0; k < n; ++k) {
-                const PathTerm &a = all.terms[all.pixelStart[p] + k],
-                               &b = part.terms[part.pixelStart[q] + k];
-                ASSERT_TRUE((a.constant == b.constant).all());
-                ASSERT_EQ(b.pixel, q);
-                ASSERT_EQ(a.vertexCount, b.vertexCount);
-                for (std::uint32_t v = 0; v < a.vertexCount; ++v) {
-                    ASSERT_EQ(all.vertices[a.firstVertex + v].logCos,
-                              part.vertices[b.firstVertex + v].logCos);
-                    ASSERT_EQ(all.vertices[a.firstVertex + v].slot,
-                              part.vertices[b.firstVertex + v].slot);
-                }
-            }
-            terms += n;
+            terms += expectSamePixelPaths(all, p, part, q);
         }
     EXPECT_GT(terms, 500u);
     options.window = {30, 0, 11, 36};
