@@ -24,10 +24,17 @@ std::vector<MaterialScatter> roundScatter(const std::vector<FitRound>& rounds,
             out[s].ks += (b.ks - a.ks).square() / pairs;
             out[s].logN += std::pow(std::log(b.n) - std::log(a.n), 2) / pairs;
         }
+    // The square root of a variance estimated from a few rounds is biased low (Jensen): from two
+    // estimates it is sqrt(2 / pi) = 0.80 of the spread on average. Divided by that mean, c4, for
+    // the degrees of freedom of the mean squared successive difference of k estimates,
+    // 2 (k - 1)^2 / (3 k - 4) (von Neumann).
+    const double k = double(estimates.size()), dof = 2 * (k - 1) * (k - 1) / (3 * k - 4);
+    const double c4 =
+        std::sqrt(2 / dof) * std::exp(std::lgamma((dof + 1) / 2) - std::lgamma(dof / 2));
     for (MaterialScatter& m : out) {
-        m.kd = m.kd.sqrt();
-        m.ks = m.ks.sqrt();
-        m.logN = std::sqrt(m.logN);
+        m.kd = m.kd.sqrt() / c4;
+        m.ks = m.ks.sqrt() / c4;
+        m.logN = std::sqrt(m.logN) / c4;
     }
     return out;
 }

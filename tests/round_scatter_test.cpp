@@ -8,6 +8,11 @@
 namespace phongfit {
 namespace {
 
+// E sqrt(q) / sigma for q a variance estimate with `dof` degrees of freedom (chi-square).
+double c4(double dof) {
+    return std::sqrt(2 / dof) * std::tgamma((dof + 1) / 2) / std::tgamma(dof / 2);
+}
+
 FitRound roundAt(double kd, double ks, double n) {
     FitRound r;
     MaterialFit m;
@@ -20,8 +25,8 @@ FitRound roundAt(double kd, double ks, double n) {
 
 // Six rounds: 0 and 1 travel (ignored); 2 to 5 alternate ks 0.25, 0.254 and n 1000, 1100, with
 // kd steady. Successive differences 0.004 and log(1.1) three times: scatter 0.004 / sqrt(2) and
-// n log(1.1) / sqrt(2). The sandwich's smaller errors are raised, a larger one kept, a held
-// parameter (0) left alone.
+// n log(1.1) / sqrt(2), over c4 of 4 estimates' 2 * 3^2 / 8 degrees of freedom. The sandwich's
+// smaller errors are raised, a larger one kept, a held parameter (0) left alone.
 TEST(RoundScatter, RaisesStandardErrorsToTheLastRoundsScatter) {
     FitResult result;
     result.rounds = {roundAt(0.1, 0.9, 5),     roundAt(0.5, 0.3, 800),
@@ -36,9 +41,11 @@ TEST(RoundScatter, RaisesStandardErrorsToTheLastRoundsScatter) {
     const MaterialFit& m = result.materials[0];
     EXPECT_EQ(m.kdStd[0], 1e-4);
     EXPECT_EQ(m.kdStd[2], 0);
-    EXPECT_NEAR(m.ksStd[0], 0.004 / std::sqrt(2.0), 1e-12);
+    const double unbiased = 1 / c4(2.25);
+    EXPECT_NEAR(unbiased, 1.1141, 1e-4);
+    EXPECT_NEAR(m.ksStd[0], 0.004 / std::sqrt(2.0) * unbiased, 1e-12);
     EXPECT_EQ(m.ksStd[1], 0.01);
-    EXPECT_NEAR(m.nStd, 1100 * std::log(1.1) / std::sqrt(2.0), 1e-9);
+    EXPECT_NEAR(m.nStd, 1100 * std::log(1.1) / std::sqrt(2.0) * unbiased, 1e-9);
 }
 
 // The scatter needs two estimates from round 2 on, and only the last kScatterRounds count.
@@ -77,6 +84,7 @@ TEST(RoundScatter, LeavesSharperProbesOut) {
 }
 
 // The lobe test asks during the last round, before it joins the list: its estimate comes last.
+// Two estimates: one degree of freedom, E |d| / sqrt(2) = sqrt(2 / pi) sigma.
 TEST(RoundScatter, TakesTheRoundUnderWayAsTheLatestEstimate) {
     const std::vector<FitRound> rounds = {roundAt(0.1, 0.9, 5), roundAt(0.5, 0.3, 800),
                                           roundAt(0.6, 2e-7, 1000)};
@@ -84,7 +92,7 @@ TEST(RoundScatter, TakesTheRoundUnderWayAsTheLatestEstimate) {
     const std::vector<MaterialFit> latest = roundAt(0.6, 6e-7, 1000).materials;
     const std::vector<MaterialScatter> s = roundScatter(rounds, &latest);
     ASSERT_EQ(s.size(), 1u);
-    EXPECT_NEAR(s[0].ks[1], 4e-7 / std::sqrt(2.0), 1e-18);
+    EXPECT_NEAR(s[0].ks[1], 4e-7 / std::sqrt(2.0) / std::sqrt(2 / M_PI), 1e-18);
     EXPECT_EQ(s[0].kd[0], 0);
     EXPECT_EQ(s[0].logN, 0);
 }
