@@ -1,8 +1,8 @@
 // An append-only array kept in fixed blocks of 256 kB (mapped_allocator.h: straight from the
 // system). For a recording's tile records, which grow to tens of megabytes a tile where a lobe
 // draws the paths: a vector doubles by copying, and for a moment holds both copies; blocks are
-// never copied. A reader that has consumed a prefix hands its blocks back (releaseBefore), so
-// copying the records into the path set does not hold a tile twice either.
+// never copied. A reader hands back what it has consumed (releaseBefore a prefix, releaseWithin
+// any range), so copying the records into the path set does not hold a tile twice either.
 #pragma once
 
 #include <algorithm>
@@ -63,7 +63,7 @@ public:
     void truncate(std::size_t n) {
         size_ = n;
         while (blocks_.size() > (n + kBlock - 1) / kBlock) {
-            MappedAllocator<T>().deallocate(blocks_.back(), kBlock);
+            release(blocks_.back());
             blocks_.pop_back();
         }
     }
@@ -71,17 +71,39 @@ public:
     // the bytes that went back to the heap rather than to the system (MappedAllocator's fallback).
     std::size_t releaseBefore(std::size_t i) {
         std::size_t heap = 0;
-        for (; released_ < std::min(i / kBlock, blocks_.size()); ++released_) {
-            T*& block = blocks_[released_];
-            if (!detail::blockIsMapped(block)) heap += kBlock * sizeof(T);
-            MappedAllocator<T>().deallocate(block, kBlock);
-            block = nullptr;
+        for (; released_ < std::min(i / kBlock, blocks_.size()); ++released_)
+            heap += release(blocks_[released_]);
+        return heap;
+    }
+    // Once appending is over, elements [begin, end) are not read again: the blocks that hold only
+    // them go back, and the whole pages they fill in the others leave the resident set (mapped
+    // blocks). Returns the bytes that went back to the heap.
+    std::size_t releaseWithin(std::size_t begin, std::size_t end) {
+        std::size_t heap = 0;
+        end = std::min(end, size_);
+        for (std::size_t b = begin / kBlock; begin < end; ++b) {
+            const std::size_t first = b * kBlock, last = std::min(first + kBlock, size_);
+            const std::size_t to = std::min(end, last);
+            T*& block = blocks_[b];
+            if (begin == first && to == last)
+                heap += release(block);
+            else if (block != nullptr && detail::blockIsMapped(block))
+                detail::discardPages(block + (begin - first), block + (to - first));
+            begin = to;
         }
         return heap;
     }
 
 private:
-    std::vector<T*> blocks_;  // the first released_ handed back (nullptr)
+    static std::size_t release(T*& block) {
+        if (block == nullptr) return 0;
+        const std::size_t heap = detail::blockIsMapped(block) ? 0 : kBlock * sizeof(T);
+        MappedAllocator<T>().deallocate(block, kBlock);
+        block = nullptr;
+        return heap;
+    }
+
+    std::vector<T*> blocks_;  // the first released_, and any released within, are nullptr
     std::size_t size_ = 0, released_ = 0;
 };
 

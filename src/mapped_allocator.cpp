@@ -1,8 +1,10 @@
 #include "mapped_allocator.h"
 
 #include <sys/mman.h>
+#include <unistd.h>
 
 #include <atomic>
+#include <cstdint>
 #include <cstdlib>
 
 namespace phongfit::detail {
@@ -45,5 +47,17 @@ void deallocateMaybeMapped(void* elements, std::size_t bytes) noexcept {
 }
 
 int liveMappings() { return mappings.load(); }
+
+std::size_t pageBytes() {
+    static const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+    return page;
+}
+
+void discardPages(const void* from, const void* to) noexcept {
+    const std::uintptr_t page = pageBytes();
+    const std::uintptr_t begin = (reinterpret_cast<std::uintptr_t>(from) + page - 1) / page * page;
+    const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(to) / page * page;
+    if (begin < end) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+}
 
 }  // namespace phongfit::detail

@@ -20,6 +20,11 @@ struct alignas(16) MappedBlockHeader {
 void* allocateMaybeMapped(std::size_t bytes);
 void deallocateMaybeMapped(void* elements, std::size_t bytes) noexcept;
 int liveMappings();  // how many blocks are mapped now
+// Hands the whole pages within [from, to) of a mapped block back to the system: they leave the
+// resident set and read as zero if touched again. The block's first page, which holds the header,
+// never lies within its elements' whole pages.
+void discardPages(const void* from, const void* to) noexcept;
+std::size_t pageBytes();  // the system's page size
 // Whether a block MappedAllocator gave came from the system (else from the heap).
 inline bool blockIsMapped(const void* elements) noexcept {
     return (static_cast<const MappedBlockHeader*>(elements) - 1)->mapped;
