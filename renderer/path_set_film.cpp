@@ -3,8 +3,34 @@
 #include <malloc.h>
 
 #include <algorithm>
+#include <limits>
 
 namespace phongfit {
+
+namespace {
+
+// A stretch of a tile's record whose pixels do not decrease, being copied into the set.
+struct RecordRun {
+    std::size_t begin, end;                 // terms
+    std::size_t firstVertex;                // the run's
+    std::size_t next, nextVertex;           // the first term, and vertex, not yet copied
+    std::size_t termsFreed, verticesFreed;  // where the next hand-back starts
+};
+
+// The record's runs: its passes one after the other, each over the tile's pixels in order.
+template <typename Terms>
+std::vector<RecordRun> recordRuns(const Terms& terms) {
+    std::vector<RecordRun> runs;
+    for (std::size_t i = 0; i < terms.size(); ++i) {
+        if (i > 0 && terms[i].pixel >= terms[i - 1].pixel) continue;
+        if (!runs.empty()) runs.back().end = i;
+        const std::size_t v = terms[i].firstVertex;
+        runs.push_back({i, terms.size(), v, i, v, i, v});
+    }
+    return runs;
+}
+
+}  // namespace
 
 PathSetFilm::PathSetFilm(int width, int height, std::vector<int> paths, std::size_t tiles)
     : width_(width),
@@ -39,15 +65,52 @@ void PathSetFilm::Sample::drop() {
     film_.background_[pixel_] = backgroundBefore_;
 }
 
+double PathSetFilm::rescale(std::size_t p) const {
+    return kept_[p] > 0 && kept_[p] != std::uint32_t(paths_[p]) ? double(paths_[p]) / kept_[p]
+                                                                : 1.0;
+}
+
+void PathSetFilm::copyRecord(TileRecord& record, PathSet& set, std::vector<std::uint32_t>& nextTerm,
+                             std::vector<std::uint32_t>& nextVertex,
+                             const std::function<void(std::size_t)>& handedBack) const {
+    const std::size_t page = detail::pageBytes();
+    const std::size_t termsAPage = page / sizeof(PathTerm) + 1;
+    const std::size_t verticesAPage = page / sizeof(PathVertex) + 1;
+    std::vector<RecordRun> runs = recordRuns(record.terms);
+    for (;;) {
+        std::uint32_t p = std::numeric_limits<std::uint32_t>::max();
+        for (const RecordRun& run : runs)
+            if (run.next < run.end) p = std::min(p, record.terms[run.next].pixel);
+        if (p == std::numeric_limits<std::uint32_t>::max()) return;
+        const double scale = rescale(p);
+        for (RecordRun& run : runs) {
+            for (; run.next < run.end && record.terms[run.next].pixel == p; ++run.next) {
+                PathTerm term = record.terms[run.next];
+                for (std::uint32_t v = 0; v < term.vertexCount; ++v)
+                    set.vertices[nextVertex[p] + v] = record.vertices[term.firstVertex + v];
+                run.nextVertex = term.firstVertex + term.vertexCount;
+                term.firstVertex = nextVertex[p];
+                nextVertex[p] += term.vertexCount;
+                term.constant = (term.constant.cast<double>() * scale).cast<float>();
+                set.terms[nextTerm[p]++] = term;
+            }
+            // What the run has copied goes back a few pages at a time, each time from a page
+            // before where it went back last (that page may have been partly unread then).
+            if ((run.next - run.termsFreed) * sizeof(PathTerm) +
+                    (run.nextVertex - run.verticesFreed) * sizeof(PathVertex) <
+                4 * page)
+                continue;
+            handedBack(record.terms.releaseWithin(run.termsFreed, run.next) +
+                       record.vertices.releaseWithin(run.verticesFreed, run.nextVertex));
+            run.termsFreed = std::max(run.begin, run.next - std::min(run.next, termsAPage));
+            run.verticesFreed =
+                std::max(run.firstVertex, run.nextVertex - std::min(run.nextVertex, verticesAPage));
+        }
+    }
+}
+
 PathSet PathSetFilm::assemble(int spp, int slots) {
     const std::size_t pixels = paths_.size();
-    // Terms were scaled by 1 / paths; a pixel that kept fewer is rescaled to their mean (a factor
-    // of 1 changes no bit).
-    const auto rescale = [&](std::size_t p) {
-        return kept_[p] > 0 && kept_[p] != std::uint32_t(paths_[p]) ? double(paths_[p]) / kept_[p]
-                                                                    : 1.0;
-    };
-
     PathSet set;
     set.width = width_;
     set.height = height_;
@@ -62,7 +125,7 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
         set.pixelPaths = kept_;
 
     // A counting sort by pixel, stable: a pixel lies in one tile, whose record holds its terms in
-    // the order they were traced, so they keep it. Vertices follow their terms.
+    // the order they were traced, so they keep it (copyRecord). Vertices follow their terms.
     set.pixelStart.assign(pixels + 1, 0);
     std::vector<std::uint32_t> nextVertex(pixels + 1, 0);
     for (const TileRecord& record : tiles_)
@@ -78,36 +141,25 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.terms.resize(set.pixelStart[pixels]);
     set.vertices.resize(nextVertex[pixels]);
     std::vector<std::uint32_t> nextTerm(set.pixelStart.begin(), set.pixelStart.end() - 1);
-    // The set's pages become resident as they are written (DefaultInitAllocator), in tile order,
-    // while each record hands back its blocks once copied (mapped ones leave the resident set at
-    // once, any from the heap are handed back to the system every sixteenth of the paths): the
-    // peak stays near one copy of the paths, not two.
+    // The set's pages become resident as they are written (DefaultInitAllocator) while the records
+    // hand back what has been copied (mapped blocks and pages leave the resident set at once, any
+    // from the heap are handed back to the system every sixteenth of the paths): the peak stays
+    // near one copy of the paths, not two.
     const std::size_t trimEvery = std::max<std::size_t>(
         (set.terms.size() * sizeof(PathTerm) + set.vertices.size() * sizeof(PathVertex)) / 16,
         std::size_t(1) << 20);
     std::size_t heapFreed = 0;
-    const auto handBack = [&](TileRecord& record, std::size_t terms, std::size_t vertices) {
-        heapFreed += record.terms.releaseBefore(terms) + record.vertices.releaseBefore(vertices);
+    const auto handedBack = [&](std::size_t heap) {
+        heapFreed += heap;
         if (heapFreed >= trimEvery) {
             malloc_trim(0);
             heapFreed = 0;
         }
     };
     for (TileRecord& record : tiles_) {
-        for (std::size_t i = 0; i < record.terms.size(); ++i) {
-            PathTerm term = record.terms[i];
-            const std::uint32_t p = term.pixel;
-            // Vertices follow their terms in a record: those before this term's end are copied.
-            const std::size_t copied = std::size_t(term.firstVertex) + term.vertexCount;
-            for (std::uint32_t v = 0; v < term.vertexCount; ++v)
-                set.vertices[nextVertex[p] + v] = record.vertices[term.firstVertex + v];
-            term.firstVertex = nextVertex[p];
-            nextVertex[p] += term.vertexCount;
-            term.constant = (term.constant.cast<double>() * rescale(p)).cast<float>();
-            set.terms[nextTerm[p]++] = term;
-            if ((i + 1) % BlockArray<PathTerm>::kBlock == 0) handBack(record, i + 1, copied);
-        }
-        handBack(record, std::size_t(-1), std::size_t(-1));
+        copyRecord(record, set, nextTerm, nextVertex, handedBack);
+        handedBack(record.terms.releaseBefore(std::size_t(-1)) +
+                   record.vertices.releaseBefore(std::size_t(-1)));
     }
     tiles_.clear();
     return set;

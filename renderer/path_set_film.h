@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -56,6 +57,19 @@ public:
     static double peakBytes(std::size_t pixels, double terms, double vertices);
 
 private:
+    // Terms were scaled by 1 / paths; a pixel that kept fewer is rescaled to their mean (a factor
+    // of 1 changes no bit).
+    double rescale(std::size_t pixel) const;
+    // Copies a tile's record into `set` at the pixels' cursors, pixel by pixel and each pixel's
+    // terms in the order traced, handing back (through `handedBack`, with the bytes that went to
+    // the heap) what has been copied as it goes. The record holds its passes one after the other,
+    // each over the tile's pixels: copied in that order, every pixel of the tile kept a page of
+    // each of the set's arrays partly written, and resident, at once; pixel by pixel the set is
+    // written front to back.
+    void copyRecord(TileRecord& record, PathSet& set, std::vector<std::uint32_t>& nextTerm,
+                    std::vector<std::uint32_t>& nextVertex,
+                    const std::function<void(std::size_t)>& handedBack) const;
+
     int width_, height_;
     std::vector<int> paths_;
     std::vector<Color3> background_;  // summed in double in sample order, as traced
