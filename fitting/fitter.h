@@ -83,6 +83,9 @@ struct FitRound {
     // The two recorded path sets of all views: terms and vertices, in bytes.
     std::size_t recordedBytes = 0;
     std::size_t peakMemoryBytes = 0;  // the process' peak resident memory after the round
+    // Pages of the program's code and libraries (file-backed, fileResidentBytes) the process took
+    // in since the rounds began, as the round began: code that first runs in the fit.
+    std::size_t programBytes = 0;
     double rmse = 0;     // at this round's solution, of the mean prediction of its two path sets
     int iterations = 0;  // Ceres iterations, over all solves of the round
     double secondsPerIteration = 0;

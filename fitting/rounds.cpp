@@ -1,6 +1,7 @@
 #include "rounds.h"
 
 #include <fmt/format.h>
+#include <malloc.h>
 
 #include <algorithm>
 #include <chrono>
@@ -210,8 +211,11 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     const std::vector<PhongMaterial>& start, const FitOptions& options,
                     int maxRounds, bool rerecords) {
     const auto begin = std::chrono::steady_clock::now();
+    // Counted from what the process holds, not what its heap kept of what it freed (as after
+    // each round below).
+    malloc_trim(0);
     resetPeakResident();
-    const std::size_t residentAtStart = residentBytes();
+    const std::size_t residentAtStart = residentBytes(), filesAtStart = fileResidentBytes();
     const int threads = options.threads > 0 ? options.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
     FitResult result;
@@ -255,6 +259,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             break;
         }
         const auto roundBegin = std::chrono::steady_clock::now();
+        const std::size_t files = fileResidentBytes();
+        const std::size_t programBytes = files - std::min(files, filesAtStart);
         const double recordFactor = probed ? kProbePaths : pathFactor;
         const RoundSets sets = recordAll(theta.materials, round, importance, recordFactor);
         const double recordSeconds = secondsSince(roundBegin);
@@ -303,9 +309,11 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             solver->confirmLobes(out, ksFloor.empty() ? nullptr : &ksFloor);
         }
         solver.reset();
+        malloc_trim(0);  // the solver's many small blocks leave the resident set
 
         FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out);
         r.recordSeconds = recordSeconds;
+        r.programBytes = programBytes;
         r.timeSeconds = secondsSince(roundBegin);
         result.rounds.push_back(r);
         if (options.onRound) options.onRound(r);

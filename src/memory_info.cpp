@@ -21,6 +21,20 @@ bool readNumber(const char* path, std::size_t& value) {
     return true;
 }
 
+// A "key: N kB" line of /proc/self/status, in bytes; 0 where it cannot be read.
+std::size_t statusBytes(const char* wanted) {
+    std::ifstream status("/proc/self/status");
+    std::string key;
+    while (status >> key) {
+        if (key == wanted) {
+            std::size_t kb = 0;
+            return status >> kb ? kb * 1024 : 0;
+        }
+        status.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+    }
+    return 0;
+}
+
 }  // namespace
 
 std::size_t residentBytes() {
@@ -30,18 +44,9 @@ std::size_t residentBytes() {
     return resident * std::size_t(sysconf(_SC_PAGESIZE));
 }
 
-std::size_t peakResidentBytes() {
-    std::ifstream status("/proc/self/status");
-    std::string key;
-    while (status >> key) {
-        if (key == "VmHWM:") {
-            std::size_t kb = 0;
-            return status >> kb ? kb * 1024 : 0;
-        }
-        status.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
-    }
-    return 0;
-}
+std::size_t peakResidentBytes() { return statusBytes("VmHWM:"); }
+
+std::size_t fileResidentBytes() { return statusBytes("RssFile:"); }
 
 void resetPeakResident() {
     std::ofstream clear("/proc/self/clear_refs");

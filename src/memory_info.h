@@ -8,6 +8,10 @@ namespace phongfit {
 // Bytes the process holds now (resident set), 0 where it cannot be read.
 std::size_t residentBytes();
 
+// Of residentBytes(), the pages backed by files (RssFile): the program's code and libraries, and
+// files mapped for reading, which the kernel brings in as they are first touched and may drop.
+std::size_t fileResidentBytes();
+
 // The most the process has held since it started or since resetPeakResident() (VmHWM), 0 where
 // it cannot be read.
 std::size_t peakResidentBytes();

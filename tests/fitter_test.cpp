@@ -1171,5 +1171,27 @@ TEST(FitReport, HasEveryKeyAndIsWrittenAtomically) {
     std::filesystem::remove_all(dir);
 }
 
+// The memory report: the rest per used pixel is the peak less the process at the start, the
+// program's pages taken in by the peak's round and the most paths a round recorded.
+TEST(FitReport, MemoryCountsTheRestBeyondProgramAndPaths) {
+    FitResult r;
+    r.pixelsUsed = 1000;
+    r.residentAtStartBytes = 50'000'000;
+    for (const auto& [peak, program, recorded] : {std::tuple{60'000'000, 1'000'000, 9'000'000},
+                                                  {80'000'000, 1'500'000, 28'000'000},
+                                                  {80'000'000, 2'000'000, 1'000'000}}) {
+        FitRound round;
+        round.peakMemoryBytes = std::size_t(peak);
+        round.programBytes = std::size_t(program);
+        round.recordedBytes = std::size_t(recorded);
+        r.rounds.push_back(round);
+    }
+    const nlohmann::json m = toJson(r, {})["memory"];
+    EXPECT_EQ(m["peak_bytes"].get<std::size_t>(), 80'000'000u);
+    EXPECT_EQ(m["program_pages_bytes"].get<std::size_t>(), 1'500'000u);  // the peak's first round
+    EXPECT_EQ(m["most_recorded_bytes"].get<std::size_t>(), 28'000'000u);
+    EXPECT_DOUBLE_EQ(m["rest_per_used_pixel_bytes"].get<double>(), 500.0);
+}
+
 }  // namespace
 }  // namespace phongfit

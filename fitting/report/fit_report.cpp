@@ -37,18 +37,22 @@ nlohmann::json exposureJson(const ExposureFit& e) {
     return {{"value", e.value}, {"std", e.std}, {"unconstrained", e.unconstrained}};
 }
 
-// The fit's peak against what it holds: the process at the start, the recorded paths, and per
-// used pixel the rest (at most kStateBytesPerPixel by design; it also counts anything else the
-// process allocated meanwhile).
+// The fit's peak against what it holds: the process at the start, the program's code first run
+// since (as the peak's round began: pages taken in later are counted against the fit), the
+// recorded paths, and per used pixel the rest (at most kStateBytesPerPixel by design; it also
+// counts anything else the process allocated meanwhile).
 nlohmann::json memoryJson(const FitResult& result) {
-    std::size_t peak = 0, recorded = 0;
+    std::size_t peak = 0, recorded = 0, program = 0;
     for (const FitRound& r : result.rounds) {
+        if (r.peakMemoryBytes > peak) program = r.programBytes;
         peak = std::max(peak, r.peakMemoryBytes);
         recorded = std::max(recorded, r.recordedBytes);
     }
-    const double rest = double(peak) - double(result.residentAtStartBytes) - double(recorded);
+    const double rest =
+        double(peak) - double(result.residentAtStartBytes) - double(program) - double(recorded);
     return {{"peak_bytes", peak},
             {"resident_at_start_bytes", result.residentAtStartBytes},
+            {"program_pages_bytes", program},
             {"most_recorded_bytes", recorded},
             {"rest_per_used_pixel_bytes",
              result.pixelsUsed > 0 ? std::max(rest, 0.0) / double(result.pixelsUsed) : 0.0},
