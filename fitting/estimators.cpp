@@ -19,6 +19,12 @@ constexpr int kMaxPasses = 8;
 // solution's: near-equal ones (exact data, where both are the least-squares solution) must not
 // flip from one to the other on rounding.
 constexpr double kCrossPreference = 0.5;
+// The passes give up, keeping the anchor, once two in a row end this far below the precision
+// that keeps the moments, each having moved by less than kWalkingMove of its standard errors (a
+// pass that moves further is walking from a poor anchor to a root): on the recovery matrix no
+// round that kept the moments had (docs/design/fitter.md, "A round").
+constexpr double kHopelessPrecision = 0.2 * kCrossPreference;
+constexpr double kWalkingMove = 100;
 
 // Whether the cross products have a minimum here: their Gauss-Newton matrix is positive definite
 // over the free coordinates. Their sum itself can be below 0 at a well-defined minimum (a Cornell
@@ -96,20 +102,28 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     instruments_.adopt(objective_, at_);
     std::vector<Eigen::Matrix<double, P, 1>> instrumentPoint = params_.naturalBlocks();
     const bool anchorConverged = out.solverConverged;
+    const double anchorPrecision = precision(params_, anchorStd);
+    FitOptions notWalking;
+    notWalking.tolerance = 0;
+    notWalking.stdTolerance = kWalkingMove;
+    int hopeless = 0;  // passes in a row below kHopelessPrecision, not walking
     for (int pass = 1;; ++pass) {
         account(out, minimizeMoments(objective_, params_, instruments_, options_));
         analysis = analyse();
         out.naturalStd = naturalStd(analysis.jacobian, analysis.scores);
+        const double momentPrecision = precision(params_, out.naturalStd);
+        const bool hopelessPass = momentPrecision < kHopelessPrecision * anchorPrecision &&
+                                  withinTolerance<P>(instrumentPoint, params_.naturalBlocks(),
+                                                     out.naturalStd, notWalking);
+        hopeless = hopelessPass ? hopeless + 1 : 0;
         const bool settled = withinTolerance<P>(instrumentPoint, params_.naturalBlocks(),
                                                 noStd(params_.blockCount(), P), options_);
-        if (!settled && pass < kMaxPasses && !stopping()) {
+        if (!settled && pass < kMaxPasses && hopeless < 2 && !stopping()) {
             instruments_.adopt(objective_, at_);
             instrumentPoint = params_.naturalBlocks();
             continue;
         }
-        if (settled &&
-            precision(params_, out.naturalStd) >= kCrossPreference * precision(params_, anchorStd))
-            return analysis;
+        if (settled && momentPrecision >= kCrossPreference * anchorPrecision) return analysis;
         params_.setInternal(anchorX);
         out.naturalStd = anchorStd;
         out.solverConverged = anchorConverged;

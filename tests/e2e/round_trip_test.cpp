@@ -176,10 +176,12 @@ TEST_P(SubPixelHighlight, KeepsItsExponentFree) {
     // A point light seen directly: the recordings replay any lobe alike, no sharper probe. The
     // moment equations have no root in reach here: each solve stops after kMomentIterations and
     // the next pass goes on with the instruments moved (before that cap, rounds crawled for up to
-    // 860 Ceres iterations to the same estimate; now at most 260).
+    // 860 Ceres iterations to the same estimate; then at most 260). The later rounds' passes end
+    // far less precise than the anchor and give up after two (kHopelessPrecision): at most 151
+    // iterations, the same estimates (212-260 before).
     for (const auto& r : report["rounds"]) {
         EXPECT_FALSE(r["probe"].get<bool>()) << r.dump();
-        EXPECT_LE(r["iterations"].get<int>(), 300) << r.dump();
+        EXPECT_LE(r["iterations"].get<int>(), r["round"].get<int>() == 0 ? 250 : 160) << r.dump();
     }
     for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(m["kd"][c].get<double>(), 0.6, 0.02 * 0.6);
