@@ -51,15 +51,17 @@ PhongParams<T> params() {
 template <typename T>
 void BM_Eval(benchmark::State& state) {
     const Inputs<T> in;
-    const PhongParams<T> p = params<T>();
+    PhongParams<T> p = params<T>();
+    p.n = T(state.range(0));
     std::size_t i = 0;
     for (auto _ : state) {
         const std::size_t k = i++ & (kTable - 1);
         benchmark::DoNotOptimize(phongEval(p, in.wi[k], in.wo[k]));
     }
 }
-BENCHMARK_TEMPLATE(BM_Eval, float);
-BENCHMARK_TEMPLATE(BM_Eval, double);
+// n 100, and 30000, where cos^n of most random directions is exactly 0.
+BENCHMARK_TEMPLATE(BM_Eval, float)->Arg(100)->Arg(30000);
+BENCHMARK_TEMPLATE(BM_Eval, double)->Arg(100)->Arg(30000);
 
 // The fitter's case: Jet parameters (kd, ks, log n: 7 derivatives), double directions.
 void BM_EvalJet7(benchmark::State& state) {
@@ -70,14 +72,31 @@ void BM_EvalJet7(benchmark::State& state) {
         p.kd[c] = Jet(0.3, c);
         p.ks[c] = Jet(0.6, 3 + c);
     }
-    p.n = exp(Jet(std::log(100.0), 6));
+    p.n = exp(Jet(std::log(double(state.range(0))), 6));
     std::size_t i = 0;
     for (auto _ : state) {
         const std::size_t k = i++ & (kTable - 1);
         benchmark::DoNotOptimize(phongEval(p, in.wi[k], in.wo[k]));
     }
 }
-BENCHMARK(BM_EvalJet7);
+BENCHMARK(BM_EvalJet7)->Arg(100)->Arg(30000);
+
+// exp(n log cos alpha) of random directions at n = 30000: std::exp, whose underflow path sets
+// errno, against expOrZero, which skips exp where it is exactly 0 (the same bits).
+template <bool kSkip>
+void BM_LobePower(benchmark::State& state) {
+    const Inputs<double> in;
+    std::array<double, kTable> x;
+    for (std::size_t k = 0; k < kTable; ++k) x[k] = 30000 * logCosAlpha(in.wi[k], in.wo[k]);
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const double v = x[i++ & (kTable - 1)];
+        benchmark::DoNotOptimize(kSkip ? expOrZero(v) : std::exp(v));
+    }
+    state.SetLabel(kSkip ? "expOrZero" : "std::exp");
+}
+BENCHMARK_TEMPLATE(BM_LobePower, false);
+BENCHMARK_TEMPLATE(BM_LobePower, true);
 
 // range(0) indexes phongSamplerNames().
 template <typename T>

@@ -51,9 +51,8 @@ D logCosAlpha(const Vec3<D>& wi, const Vec3<D>& wo) {
 // alpha (ceres::pow has non-finite derivatives at a zero base).
 template <typename T, typename D>
 T phongPower(const T& n, D logCos) {
-    using std::exp;
     if (logCos == -std::numeric_limits<D>::infinity()) return T(0);
-    return exp(n * T(logCos));
+    return expOrZero(n * T(logCos));
 }
 
 // f from log(cos alpha); the form the fitter replays recorded vertices with.

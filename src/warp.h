@@ -54,7 +54,7 @@ Vec3<T> squareToPhongLobe(const Vec2<T>& u, T n) {
 template <typename T>
 T phongLobePdf(T h, T n) {
     if (!(h < T(1))) return T(0);
-    return (n + T(1)) * T(0.5 * kInvPi) * std::exp(n * std::log1p(-h));
+    return (n + T(1)) * T(0.5 * kInvPi) * expOrZero(n * std::log1p(-h));
 }
 
 // 1 - cos(theta_max) of the cap that holds the Phong lobe down to eps of its peak:

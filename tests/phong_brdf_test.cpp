@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
@@ -386,6 +388,32 @@ TEST(PhongBrdfExtreme, StableCosPowerForTinyAnglesAndHugeExponents) {
         const float naive = 0.5f * (pf.n + 2) / float(2 * kPi) * std::pow(r.dot(wiF), pf.n);
         EXPECT_GT(std::abs(naive / double(reference) - 1), 1e-3) << theta << ": naive " << naive;
     }
+}
+
+// expOrZero skips exp only where exp is exactly 0: the same bits as exp on both sides of its
+// cut, for floats, doubles and Jets (value and derivatives, signs of zero included).
+template <typename S>
+void expectExpOrZeroIsExp(S from, S to) {
+    for (S x = from; x <= to; x += S(0.0137)) {
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(double(expOrZero(x))),
+                  std::bit_cast<std::uint64_t>(double(std::exp(x))))
+            << x;
+        const Jet j(x, Eigen::Matrix<double, 7, 1>(-1.5, 2, 0, -0.0, 3, -7, 1e300));
+        const Jet a = expOrZero(j), b = ceres::exp(j);
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(a.a), std::bit_cast<std::uint64_t>(b.a)) << x;
+        for (int k = 0; k < 7; ++k)
+            EXPECT_EQ(std::bit_cast<std::uint64_t>(a.v[k]), std::bit_cast<std::uint64_t>(b.v[k]))
+                << x << " " << k;
+    }
+}
+
+TEST(PhongBrdfExtreme, ExpOrZeroIsExpBitForBit) {
+    expectExpOrZeroIsExp<double>(-760, -700);
+    expectExpOrZeroIsExp<float>(-110, -90);
+    EXPECT_EQ(expOrZero(-1e6), 0.0);
+    EXPECT_EQ(expOrZero(-1e6f), 0.0f);
+    EXPECT_TRUE(std::isnan(expOrZero(std::numeric_limits<double>::quiet_NaN())));
+    EXPECT_EQ(expOrZero(0.0), 1.0);
 }
 
 // ---------------------------------------------------------------------------------------------
