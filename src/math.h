@@ -33,7 +33,7 @@ constexpr S expIsZeroBelow() {
 }
 
 // exp(x), bit for bit, without calling exp where it is exactly 0: glibc's underflow path sets
-// errno, and a sharp lobe's replay spent a fifth of its time there. A Jet's derivatives are
+// errno, and a sharp lobe's fit spent a tenth of its time there. A Jet's derivatives are
 // 0 * x.v, as ceres::exp's, signs of zero included.
 template <typename T>
 T expOrZero(const T& x) {
