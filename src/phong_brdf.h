@@ -56,9 +56,13 @@ T phongPower(const T& n, D logCos) {
 }
 
 // f from log(cos alpha); the form the fitter replays recorded vertices with.
+// Where the lobe is exactly 0 (most of a sharp lobe's recorded vertices) its arithmetic is skipped:
+// it could only add zeros, so f is the same to the last bit, derivatives included.
 template <typename T, typename D>
 Color<T> phongEvalLogCos(const PhongParams<T>& p, D logCos) {
-    const T specular = (p.n + T(2)) * T(0.5 * kInvPi) * phongPower(p.n, logCos);
+    const T power = phongPower(p.n, logCos);
+    if (power == T(0)) return p.kd * T(kInvPi);
+    const T specular = (p.n + T(2)) * T(0.5 * kInvPi) * power;
     return p.kd * T(kInvPi) + p.ks * specular;
 }
 

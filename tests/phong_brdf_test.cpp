@@ -416,6 +416,61 @@ TEST(PhongBrdfExtreme, ExpOrZeroIsExpBitForBit) {
     EXPECT_EQ(expOrZero(0.0), 1.0);
 }
 
+// phongEvalLogCos skips the lobe's arithmetic where the lobe is exactly 0: f is the full formula's
+// to the last bit on both sides of exp's cut, for floats, doubles and Jets (the fitter's: kd, ks
+// and log n as parameters), at kd = 0 and ks = 0 too.
+template <typename T, typename D>
+void expectLobeSkipIsTheFullFormula(const PhongParams<T>& p, D logCos) {
+    using std::exp;
+    const T power = logCos == -std::numeric_limits<D>::infinity() ? T(0) : exp(p.n * T(logCos));
+    const Color<T> full = p.kd * T(kInvPi) + p.ks * ((p.n + T(2)) * T(0.5 * kInvPi) * power);
+    const Color<T> f = phongEvalLogCos(p, logCos);
+    for (int c = 0; c < 3; ++c) {
+        if constexpr (std::is_floating_point_v<T>) {
+            EXPECT_EQ(std::bit_cast<std::uint64_t>(double(f[c])),
+                      std::bit_cast<std::uint64_t>(double(full[c])))
+                << logCos;
+        } else {
+            EXPECT_EQ(std::bit_cast<std::uint64_t>(f[c].a), std::bit_cast<std::uint64_t>(full[c].a))
+                << logCos;
+            for (int k = 0; k < 7; ++k)
+                EXPECT_EQ(std::bit_cast<std::uint64_t>(f[c].v[k]),
+                          std::bit_cast<std::uint64_t>(full[c].v[k]))
+                    << logCos << " " << k;
+        }
+    }
+}
+
+TEST(PhongBrdfExtreme, LobeSkipIsTheFullFormulaBitForBit) {
+    const double inf = std::numeric_limits<double>::infinity();
+    for (const auto& [kd, ks] : {std::pair{0.3, 0.5}, {0.0, 0.5}, {0.45, 0.0}, {0.0, 0.0}})
+        for (const double n : {30.0, 3e4, 1e6}) {
+            PhongParams<double> d;
+            PhongParams<float> f;
+            d.kd = Color3(kd, 0.5 * kd, 0.25 * kd);
+            d.ks = Color3::Constant(ks);
+            d.n = n;
+            f.kd = d.kd.cast<float>();
+            f.ks = d.ks.cast<float>();
+            f.n = float(n);
+            PhongParams<Jet> j;
+            for (int c = 0; c < 3; ++c) {
+                j.kd[c] = Jet(d.kd[c], c);
+                j.ks[c] = Jet(d.ks[c], 3 + c);
+            }
+            j.n = exp(Jet(std::log(n), 6));
+            // n log(cos alpha) from -800 to -90: across both cuts (-746 double, -104 float).
+            for (double x = -800; x <= -90; x += 0.37) {
+                expectLobeSkipIsTheFullFormula(d, x / n);
+                expectLobeSkipIsTheFullFormula(j, x / n);
+                expectLobeSkipIsTheFullFormula(f, float(x / n));
+            }
+            expectLobeSkipIsTheFullFormula(d, -inf);
+            expectLobeSkipIsTheFullFormula(j, -inf);
+            expectLobeSkipIsTheFullFormula(f, -std::numeric_limits<float>::infinity());
+        }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Material validation.
 
