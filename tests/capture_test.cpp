@@ -291,7 +291,8 @@ TEST(LightList, RangesAndListsParseAndErrorsAreClear) {
                                                           {"1,2,2", "light 2 is listed twice"},
                                                           {"1,,2", "'' is not a number"},
                                                           {"a", "'a' is not a number"}}) {
-        const std::string error = errorOf([&] { parseLightList(text, 10, "--holdout"); });
+        const std::string error =
+            errorOf([&, &text = text] { parseLightList(text, 10, "--holdout"); });
         EXPECT_NE(error.find("--holdout '" + text + "'"), std::string::npos) << error;
         EXPECT_NE(error.find(fragment), std::string::npos) << error;
     }

@@ -20,6 +20,15 @@
 #include "scene_fit.h"
 #include "scene_parser.h"
 
+// AddressSanitizer's build: gcc says so with __SANITIZE_ADDRESS__, clang with __has_feature.
+#if defined(__SANITIZE_ADDRESS__)
+#define PHONGFIT_ADDRESS_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define PHONGFIT_ADDRESS_SANITIZER 1
+#endif
+#endif
+
 namespace {
 
 std::atomic<std::int64_t> allocated{0}, peak{0};
@@ -195,7 +204,7 @@ double recordingPeak(int size, int spp) {
 // with each record copied pixel by pixel (PathSetFilm::copyRecord), no longer a partly written page
 // of the set open for each of a tile's pixels.
 TEST(RecordingMemory, PeakIsAboutOneCopyOfThePaths) {
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(PHONGFIT_ADDRESS_SANITIZER)
     GTEST_SKIP() << "AddressSanitizer keeps freed memory in quarantine: the resident set measures "
                     "its allocator, not the recording";
 #endif
@@ -206,7 +215,7 @@ TEST(RecordingMemory, PeakIsAboutOneCopyOfThePaths) {
 // while the records came from the heap, 1.11 mapped (mapped_allocator.h), 1.12 in blocks, 1.08
 // copied pixel by pixel; most of what is left is the film's per-pixel arrays (60 bytes a pixel).
 TEST(RecordingMemory, ManySmallTileRecordsLeaveNoSlack) {
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(PHONGFIT_ADDRESS_SANITIZER)
     GTEST_SKIP() << "AddressSanitizer keeps freed memory in quarantine: the resident set measures "
                     "its allocator, not the recording";
 #endif

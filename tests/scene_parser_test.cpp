@@ -500,7 +500,8 @@ TEST(SceneParser, MalformedEnvMapsAreNamedWithWhatIsAllowed) {
          "t.xml:4: emitter type=\"envmap\": a second environment emitter (the first is at t.xml:3"},
     };
     for (const auto& [text, fragment] : cases) {
-        const std::string message = errorOf([&] { parse(text, {}, dir.path().string()); });
+        const std::string message =
+            errorOf([&, &text = text] { parse(text, {}, dir.path().string()); });
         EXPECT_NE(message.find(fragment), std::string::npos)
             << message << "\n  wanted: " << fragment;
         EXPECT_EQ(message.find('\n'), std::string::npos) << message;
@@ -561,7 +562,7 @@ TEST(SceneParser, BadObjFilesNameTheFile) {
         {"badnormal.obj", "badnormal.obj' is malformed: normal 1 is zero"},
     };
     for (const auto& [file, fragment] : cases) {
-        const std::string message = errorOf([&] {
+        const std::string message = errorOf([&, &file = file] {
             parse(doc(fmt::format(R"(<shape type="obj"><string name="filename" value="{}"/>)"
                                   R"(</shape>)",
                                   file)),
