@@ -161,7 +161,7 @@ TEST_F(FitSynthInterrupt, SynthKeepsFinishedSamplesAndResumes) {
         const Image image = readImage((sample / "image.exr").string());
         EXPECT_EQ(image.width, 48);
         for (const float v : image.rgb) ASSERT_TRUE(std::isfinite(v));
-        EXPECT_NO_THROW((void)nlohmann::json::parse(std::ifstream(sample / "truth.json")));
+        EXPECT_TRUE(nlohmann::json::accept(std::ifstream(sample / "truth.json")));
         for (const char* file : {"image.exr", "truth.json", "scene.xml"})
             kept[sample / file] = readBytes(sample / file);
     }
