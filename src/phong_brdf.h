@@ -61,9 +61,10 @@ T phongPower(const T& n, D logCos) {
 template <typename T, typename D>
 Color<T> phongEvalLogCos(const PhongParams<T>& p, D logCos) {
     const T power = phongPower(p.n, logCos);
-    if (power == T(0)) return p.kd * T(kInvPi);
+    const Color<T> diffuse = p.kd * T(kInvPi);
+    if (power == T(0)) return diffuse;
     const T specular = (p.n + T(2)) * T(0.5 * kInvPi) * power;
-    return p.kd * T(kInvPi) + p.ks * specular;
+    return diffuse + p.ks * specular;
 }
 
 // f(wi, wo); 0 when either direction is on or below the horizon.

@@ -286,16 +286,20 @@ TEST(PhongBrdfExtreme, EvalIsFiniteEverywhere) {
                 }
 }
 
-// f with Jet parameters kd, ks (derivative slots 0-5) and n = exp(logN) (slot 6).
-Color<Jet> evalJet(const Color3& kd, const Color3& ks, double logN, const Vec3d& wi,
-                   const Vec3d& wo) {
+// The fitter's parameters as Jets: kd, ks (derivative slots 0-5) and n = exp(logN) (slot 6).
+PhongParams<Jet> jetParams(const Color3& kd, const Color3& ks, double logN) {
     PhongParams<Jet> p;
     for (int c = 0; c < 3; ++c) {
         p.kd[c] = Jet(kd[c], c);
         p.ks[c] = Jet(ks[c], 3 + c);
     }
     p.n = exp(Jet(logN, 6));
-    return phongEval(p, wi, wo);
+    return p;
+}
+
+Color<Jet> evalJet(const Color3& kd, const Color3& ks, double logN, const Vec3d& wi,
+                   const Vec3d& wo) {
+    return phongEval(jetParams(kd, ks, logN), wi, wo);
 }
 
 // The 7 parameters as one vector, for finite differences.
@@ -453,12 +457,7 @@ TEST(PhongBrdfExtreme, LobeSkipIsTheFullFormulaBitForBit) {
             f.kd = d.kd.cast<float>();
             f.ks = d.ks.cast<float>();
             f.n = float(n);
-            PhongParams<Jet> j;
-            for (int c = 0; c < 3; ++c) {
-                j.kd[c] = Jet(d.kd[c], c);
-                j.ks[c] = Jet(d.ks[c], 3 + c);
-            }
-            j.n = exp(Jet(std::log(n), 6));
+            const PhongParams<Jet> j = jetParams(d.kd, d.ks, std::log(n));
             // n log(cos alpha) from -800 to -90: across both cuts (-746 double, -104 float).
             for (double x = -800; x <= -90; x += 0.37) {
                 expectLobeSkipIsTheFullFormula(d, x / n);
