@@ -7,20 +7,28 @@
 # compiles the sanitized Eigen and Ceres templates in 60% of gcc's time (fitter_test.cpp: 55 s
 # against 91, side by side), and a second compiler sees what the plain (gcc) build does not.
 #
-# Left out, to keep CI under its 45 minutes (each takes 1.5-3 min under ASan; all run in the plain
+# Left out, to keep CI under its 45 minutes (each takes 1-4 min under ASan; all run in the plain
 # suite of scripts/test.sh):
 # - the Slurm cluster test (label slurm: it runs the same commands as shard_command_test, through
 #   daemons);
 # - the two 128x128 Cornell round trips (RoundTrip.CornellBoxWithUnknownExposure and
 #   ...FromAStartWithNOffBy100x), whose code paths (recording, replay, Ceres rounds, the exposure)
-#   run under ASan in the smaller Cornell round trip, the demo and
+#   run under ASan in the smaller Cornell round trip and
 #   RoundTrip.DirectLightLeavesTheExposureUnconstrained;
 # - statistical checks that repeat code paths other tests run under ASan:
 #   RoundTrip.AreaLightSharpLobeIsFoundWithAdaptivePaths and RoundTrip/SubPixelHighlight.*
 #   (area light, adaptive paths and holding: the small Cornell box and the exponent grid),
 #   Bench.RecoveryMatrixSubsetPassesAtDefaults (bench fit: Bench.FitRecoversTheSmallDataset and the
 #   sharded bench), DiligentBall.ExponentIsStableBetweenOddAndEvenLights (the capture fit: the
-#   other DiligentBall and AlbedoMap tests).
+#   other DiligentBall and AlbedoMap tests),
+#   Synth.ResumesAfterSigintWithTheSameFilesAsAnUninterruptedRun (synth's interrupt and resume:
+#   FitSynthInterrupt.SynthKeepsFinishedSamplesAndResumes);
+# - the demo (FitCommand.DemoRendersFitsBackAndPrintsTheErrors, the longest test under ASan: 2.5-4
+#   min, its 16-spp image growing the paths 16x): a Cornell render and scene fit, the paths' growth
+#   to the noise floor and the sharper probe, which run under ASan in
+#   RoundTrip.SmallCornellBoxStaysWithinItsStandardErrors,
+#   RoundTrip.PrecisionTargetSpendsPathsUntilMetOrAtTheImagesNoiseFloor and
+#   RoundTrip.SphereUnderTheKernerProbeIsRecovered.
 # $SANITIZE_EXCLUDE, a ctest regex, replaces that list for a local run ("" leaves none out).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -51,6 +59,8 @@ status=0
 slow='RoundTrip.CornellBoxWithUnknownExposure|RoundTrip.CornellBoxFromAStartWithNOffBy100x'
 slow+='|RoundTrip.AreaLightSharpLobeIsFoundWithAdaptivePaths|RoundTrip/SubPixelHighlight\.'
 slow+='|Bench.RecoveryMatrixSubsetPassesAtDefaults|DiligentBall.ExponentIsStableBetweenOddAndEvenLights'
+slow+='|Synth.ResumesAfterSigintWithTheSameFilesAsAnUninterruptedRun'
+slow+='|FitCommand.DemoRendersFitsBackAndPrintsTheErrors'
 exclude=${SANITIZE_EXCLUDE-$slow}
 (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900 -LE slurm \
   ${exclude:+-E "$exclude"} "$@") ||
