@@ -1,6 +1,7 @@
 #include "round_solver.h"
 
 #include <cmath>
+#include <utility>
 
 #include "holding.h"
 #include "precision_target.h"
@@ -13,11 +14,12 @@ template <int P>
 RoundSolver<P>::RoundSolver(const std::vector<Observation>& observations,
                             const std::vector<PathSet>& first, const std::vector<PathSet>& second,
                             ParameterState<P>& params, const FitOptions& options, int threads,
-                            bool firstRound)
+                            bool firstRound, std::vector<bool> scanBroader)
     : params_(params),
       options_(options),
       instrumental_(options.estimator == Estimator::InstrumentalVariables),
       firstRound_(firstRound),
+      scanBroader_(std::move(scanBroader)),
       objective_(observations, first, second, instrumental_, instrumental_ ? kInstrumentRadius : 0,
                  params.blockCount(), params.exposure(), options, threads) {}
 
@@ -35,6 +37,8 @@ RoundOutcome RoundSolver<P>::solve(const Estimate& theta) {
     if (firstRound_ && exposure.fitted() && !params_.held(exposure.slot()).n)
         matchExposure(objective_, params_);
     if (firstRound_ && options_.scanStart) scanExponents(objective_, params_);
+    if (!firstRound_ && !scanBroader_.empty())
+        scanBroaderExponents(objective_, params_, scanBroader_);
     solveHolding(out);
     return out;
 }

@@ -20,10 +20,12 @@ class RoundSolver {
 public:
     // `params` persists across rounds: the held parameters and the exposure's start. The path
     // sets must outlive the solver. `firstRound`: match the exposure and scan the exponents
-    // (FitOptions::scanStart).
+    // (FitOptions::scanStart); else the materials flagged in `scanBroader` (per material, may be
+    // empty) scan the exponents broader than where they start (scanBroaderExponents).
     RoundSolver(const std::vector<Observation>& observations, const std::vector<PathSet>& first,
                 const std::vector<PathSet>& second, ParameterState<P>& params,
-                const FitOptions& options, int threads, bool firstRound);
+                const FitOptions& options, int threads, bool firstRound,
+                std::vector<bool> scanBroader = {});
 
     // From `theta`; held parameters stay at their start.
     RoundOutcome solve(const Estimate& theta);
@@ -54,6 +56,7 @@ private:
     const FitOptions& options_;
     bool instrumental_;
     bool firstRound_;
+    std::vector<bool> scanBroader_;
     Objective<P> objective_;
     Analysis analysis_;    // at the last solution
     Linearization<P> at_;  // at the last analysis

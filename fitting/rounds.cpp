@@ -8,10 +8,12 @@
 #include <numeric>
 #include <optional>
 #include <thread>
+#include <utility>
 
 #include "convergence.h"
 #include "error.h"
 #include "fit_input.h"
+#include "identifiability.h"
 #include "memory_info.h"
 #include "memory_plan.h"
 #include "parameter_state.h"
@@ -99,6 +101,21 @@ double unsettledGrowth(const FitResult& result, const FitOptions& options, doubl
     while (growth > 1 && !fitsMemory(result, next * growth, options.memoryLimit))
         growth = std::max(1.0, growth / 2);
     return growth;
+}
+
+// Per material, whether `fits` (a round's) has a lobe worth a broader scan in the next round: n
+// free, ks at least kReflectanceFloor in some channel and kLobeConfirmation standard errors
+// from 0. A spurious lobe of the recordings' noise (ks 4e-4 where there is none) is left alone:
+// where every exponent fits alike a broader one can win by noise and unsettle the rounds.
+std::vector<bool> lobesToScan(const std::vector<MaterialFit>& fits) {
+    std::vector<bool> scan;
+    for (const MaterialFit& m : fits) {
+        const std::vector<double> ks(m.ks.begin(), m.ks.end()),
+            ksStd(m.ksStd.begin(), m.ksStd.end());
+        scan.push_back(!m.isUnconstrained("n") && m.ks.maxCoeff() >= kReflectanceFloor &&
+                       lobeDetected(ks, ksStd, kLobeConfirmation));
+    }
+    return scan;
 }
 
 bool allResolved(const std::vector<MaterialFit>& materials) {
@@ -266,12 +283,19 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const double recordSeconds = secondsSince(roundBegin);
         exact = sets.first == sets.second;
         checkRoundSets(sets, observations, int(start.size()));
+        // A round recorded at the estimate, once the estimate has travelled from the start
+        // (rounds 0 and 1, whose lobes can be the start's), also tries the broader side of its
+        // confirmed lobes.
+        std::vector<bool> scanBroader;
+        if (round >= 2 && rerecords && options.recordingFollowsEstimate && options.scanStart &&
+            !exact && !probed)
+            scanBroader = lobesToScan(result.rounds.back().materials);
         // Later rounds start where the last one ended, near enough for the instruments.
         // Its per-pixel state is freed once the round is solved, before the next importance and
         // recording (docs/design/fitter.md, "Memory").
         std::optional<RoundSolver<P>> solver;
         solver.emplace(observations, *sets.first, *sets.second, params, solveOptions, threads,
-                       round == 0);
+                       round == 0, std::move(scanBroader));
         const Estimate recorded = theta;
         RoundOutcome out = solver->solve(theta);
         // Round 0 recorded at the start, not at an estimate: its move is no difference between

@@ -1,9 +1,10 @@
 // Where the first round starts: the exposure matched to the images' brightness, and each
 // material's exponent chosen by a scan (FitOptions::scanStart), since a start with n off by 10x or
-// more can end in a local minimum.
+// more can end in a local minimum; later rounds scan the broader side of their lobes again.
 #pragma once
 
 #include <algorithm>
+#include <vector>
 
 #include "material_params.h"
 #include "objective.h"
@@ -24,6 +25,15 @@ void matchExposure(Objective<P>& objective, ParameterState<P>& params);
 // better by more than rounding: where the images show no lobe every exponent fits equally well.
 template <int P>
 void scanExponents(Objective<P>& objective, ParameterState<P>& params);
+
+// In a later round, recorded at the estimate: the scan for the `materials` flagged (per
+// material), over the grid's exponents broader than the estimate's by more than 2x, comparing the
+// cross products of the two recordings; a material moves only where a grid exponent wins. A start
+// on a lobe's sharp side can climb where n only sharpens the edge of a light's reflection and the
+// cost is flat (docs/design/fitter.md, "Later rounds scan the broader side").
+template <int P>
+void scanBroaderExponents(Objective<P>& objective, ParameterState<P>& params,
+                          const std::vector<bool>& materials);
 
 // kd, ks >= 0 and kd + ks <= 1 per colour group of natural coordinates y, by clamping; a held kd
 // stays and bounds ks instead.

@@ -23,6 +23,7 @@
 #include "replay.h"
 #include "round_outcome.h"
 #include "sharper_probe.h"
+#include "start_scan.h"
 #include "uncertainty.h"
 
 namespace phongfit {
@@ -1042,6 +1043,37 @@ TEST(Fitter, CrossProductsAreMinimisedBelowZero) {
         EXPECT_NEAR(params.natural(0)[0], truth.kd[0], 0.1 * truth.kd[0]) << "seed " << seed;
     }
     EXPECT_GE(below, 1);  // the case the offset is for is among them
+}
+
+// A later round's scan of the broader side (scanBroaderExponents), on two noisy recordings of a
+// lobe far sharper than the truth's (n 30000 for 60, which no pixel's lobe then reaches): the
+// cross products pick the grid's exponent nearest the truth, 64 (kd and ks taking a step to fit
+// best there). From the truth nothing broader
+// fits better, and the material is left as it was to the last bit; a material not flagged is not
+// scanned.
+TEST(StartScan, LaterRoundsFindTheBroaderLobeAndLeaveABetterOneAlone) {
+    using L = BlockLayout<kRgbBlock>;
+    const PathSet exact = makePaths(threeLights());
+    const std::vector<Observation> obs{observe(exact, {kTruth})};
+    const std::vector<PathSet> a{noisy(exact, 1, 8)}, b{noisy(exact, 2, 8)};
+    const FitOptions options;
+    const auto scanFrom = [&](double n, bool flagged) {
+        const PhongMaterial start = material(kTruth.kd, kTruth.ks, n);
+        ParameterState<kRgbBlock> params({start}, false);
+        Objective<kRgbBlock> objective(obs, a, b, true, kInstrumentRadius, params.blockCount(),
+                                       params.exposure(), options, 1);
+        params.startAt({{start}, 1.0});
+        const ParameterState<kRgbBlock>::NaturalVector before = params.natural(0);
+        scanBroaderExponents(objective, params, {flagged});
+        return std::pair{before, params.natural(0)};
+    };
+    const auto [sharpStart, fromSharp] = scanFrom(30000, true);
+    EXPECT_NEAR(std::exp(sharpStart[L::kLogN]), 30000, 1e-6);
+    EXPECT_NEAR(std::exp(fromSharp[L::kLogN]), 64, 1e-6);
+    for (const auto& [n, flagged] : {std::pair{kTruth.n, true}, {30000.0, false}}) {
+        const auto [before, after] = scanFrom(n, flagged);
+        for (int i = 0; i < kRgbBlock; ++i) EXPECT_EQ(before[i], after[i]) << n << " " << i;
+    }
 }
 
 TEST(Fitter, RoundsOnFreshNoisyPathSetsConvergeToTheTruth) {
