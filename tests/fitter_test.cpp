@@ -1048,9 +1048,8 @@ TEST(Fitter, CrossProductsAreMinimisedBelowZero) {
 // A later round's scan of the broader side (scanBroaderExponents), on two noisy recordings of a
 // lobe far sharper than the truth's (n 30000 for 60, which no pixel's lobe then reaches): the
 // cross products pick the grid's exponent nearest the truth, 64 (kd and ks taking a step to fit
-// best there). From the truth nothing broader
-// fits better, and the material is left as it was to the last bit; a material not flagged is not
-// scanned.
+// best there). From the truth nothing broader fits better, and the material is left as it was to
+// the last bit; a material not flagged is not scanned.
 TEST(StartScan, LaterRoundsFindTheBroaderLobeAndLeaveABetterOneAlone) {
     using L = BlockLayout<kRgbBlock>;
     const PathSet exact = makePaths(threeLights());
