@@ -40,8 +40,9 @@ constexpr long kMaxFilmPixels = 1L << 25;
 constexpr int kMaxSampleCount = 1 << 20;
 constexpr int kMaxDepth = 1000;
 constexpr std::size_t kMaxSceneTriangles = kMaxMeshTriangles;
-// Embree works in float: world-space geometry must stay well inside its range.
-constexpr double kMaxCoordinate = 1e30;
+// Embree refuses (asserts on) rays whose origin lies beyond 1.8e18 (its FLT_LARGE); rays start at
+// the camera and on surfaces, so both stay well inside that.
+constexpr double kMaxCoordinate = 1e15;
 // Meshes live in OBJ files; the XML parser's tree takes several times the text.
 constexpr std::uintmax_t kMaxSceneBytes = std::uintmax_t(64) << 20;
 

@@ -105,6 +105,36 @@ TEST(ObjMeshFuzz, HugeAndTinyNormalsAreNormalised) {
               std::string::npos);
 }
 
+// scene_render_fuzz: the camera of cornell_point.xml moved to z = 4.4e19. Finite in float and
+// inside the old limit (1e30), but Embree asserts that a ray's origin lies within 1.8e18: the
+// render aborted. Cameras and shapes must now stay within 1e15.
+TEST(SceneRenderFuzz, CameraBeyondEmbreeRangeIsAnErrorNotAnAbort) {
+    const test::TempDir dir("fuzz_regression");
+    const std::string scene = dir.write("far.xml", R"(<scene version="0.6.0">
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <transform name="toWorld">
+            <lookat origin="0, 0, 44444444444444444443.9" target="0, 0, 0" up="0, 1, 0"/>
+        </transform>
+        <film type="hdrfilm">
+            <integer name="width" value="4"/>
+            <integer name="height" value="4"/>
+        </film>
+    </sensor>
+    <emitter type="point">
+        <point name="position" x="0.3" y="0.5" z="0.6"/>
+    </emitter>
+    <shape type="rectangle"/>
+</scene>)")
+                                  .string();
+    const test::ProcessResult r =
+        test::runProcess({PHONGFIT_EXE, "render", scene, "--spp", "1", "-o", dir.at("far.exr")});
+    EXPECT_EQ(r.signal, 0) << r.err;
+    EXPECT_EQ(r.exitCode, 1) << r.err;
+    EXPECT_NE(r.err.find("the camera is placed beyond +-1e+15"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir.at("far.exr")));
+}
+
 // Found by the fuzzers once the header limits (image_limits.h) were in; the inputs are kept in
 // tests/data/fuzz/ and as fuzz seeds.
 std::string fuzzInput(const std::string& name) {

@@ -336,7 +336,11 @@ const std::vector<Case> kCases = {
      "scales a sphere non-uniformly"},
     {"ShapeBeyondFloatRange",
      sceneEdit(kSphereRef, kSphereRef + toWorld(R"(<translate x="1e35"/>)")), kRender,
-     "in world space (allowed: coordinates and sizes within +-1e+30"},
+     "in world space (allowed: coordinates and sizes within +-1e+15"},
+    // Inside float's range but beyond Embree's for a ray origin (it aborted on an assertion).
+    {"ShapeBeyondEmbreeRange",
+     sceneEdit(kSphereRef, kSphereRef + toWorld(R"(<translate x="1e20"/>)")), kRender,
+     "the shape reaches 1e+20 in world space"},
     {"CameraBeyondFloatRange",
      sceneEdit(kLookat, R"(<lookat origin="0, 0, 1e35" target="0, 0, 0" up="0, 1, 0"/>)"), kRender,
      "the camera is placed beyond"},
