@@ -48,6 +48,11 @@ struct MaterialFit {
     Color3 kdStd = Color3::Zero(), ksStd = Color3::Zero();
     double nStd = 0;
     double logNStd = 0;
+    // The standard errors the image's own noise gives, modelled from the paths (image_noise.h):
+    // where one pixel holds a parameter the sandwich cannot see that pixel's noise. A fit's result
+    // reports at least these (kd, ks and log n); its rounds keep them apart.
+    Color3 kdImageStd = Color3::Zero(), ksImageStd = Color3::Zero();
+    double logNImageStd = 0;
     // "kd", "ks", "n", or per channel "kd.r", "ks.b", ... when only some channels are
     // unconstrained.
     std::vector<std::string> unconstrained;

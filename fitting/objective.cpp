@@ -97,6 +97,19 @@ Eigen::Vector3d Objective<P>::residual(const PathSet& paths, const UsedPixel& u,
     return (w * (s * predicted - pixelObserved((*observations_)[u.view], u.pixel))).matrix();
 }
 
+template <int P>
+Eigen::Vector3d Objective<P>::pathVariance(int k, const UsedPixel& u, const double* y,
+                                           Scratch& scratch) const {
+    const std::span<const std::uint32_t> slots = prep_.slotsOf(u);
+    const bool exposed =
+        exposure_.fitted() && !slots.empty() && slots.back() == std::uint32_t(exposure_.slot());
+    for (std::uint32_t m : slots.first(slots.size() - exposed))
+        scratch.plain[m] = naturalToPhong<P>(y + std::size_t(m) * P);
+    const double scale = weight(u) * exposure_.value<P>(y);
+    return (scale * scale * replayPathVariance(recording(k, u.view), u.pixel, scratch.plain.data()))
+        .matrix();
+}
+
 namespace {
 
 // Least squares' sum of squares and (if sized) its gradient and Gauss-Newton matrix, over pixels.

@@ -77,6 +77,13 @@ public:
     Eigen::Vector3d residual(const PathSet& paths, const UsedPixel& u, const double* y,
                              Scratch& scratch, std::vector<Jacobian>* jacobians) const;
 
+    // Recording k (0 or 1) of a view.
+    const PathSet& recording(int k, std::uint32_t view) const { return (*recordings_[k])[view]; }
+    // The variance of one path of pixel u in recording k at y (replayPathVariance), in the
+    // weighted residual's units: times (weight * exposure)^2.
+    Eigen::Vector3d pathVariance(int k, const UsedPixel& u, const double* y,
+                                 Scratch& scratch) const;
+
     // Sum over the first `count` used pixels of body(pixel index, sum, scratch).
     template <typename Value, typename Body>
     Value sumPixels(std::size_t count, const Value& zero, const Body& body) {

@@ -14,22 +14,45 @@
 
 namespace phongfit {
 
-// `theta` is indexed by material slot (PathVertex::slot); only the slots the pixel's vertices use
-// are read.
+// The product of a term's BRDFs at theta (its constant left out). `theta` is indexed by material
+// slot (PathVertex::slot); only the slots the term's vertices use are read.
+template <typename T>
+Color<T> termBrdfs(const PathSet& paths, const PathTerm& term, const PhongParams<T>* theta) {
+    const PathVertex* v = paths.vertices.data() + term.firstVertex;
+    Color<T> f = phongEvalLogCos(theta[v[0].slot], v[0].logCos);
+    for (std::uint32_t k = 1; k < term.vertexCount; ++k)
+        f *= phongEvalLogCos(theta[v[k].slot], v[k].logCos);
+    return f;
+}
+
 template <typename T>
 Color<T> replayPixel(const PathSet& paths, std::size_t pixel, const PhongParams<T>* theta) {
     Color<T> sum;
     for (int c = 0; c < 3; ++c) sum[c] = T(double(paths.background[pixel][c]));
     const std::uint32_t end = paths.pixelStart[pixel + 1];
     for (std::uint32_t t = paths.pixelStart[pixel]; t < end; ++t) {
-        const PathTerm& term = paths.terms[t];
-        const PathVertex* v = paths.vertices.data() + term.firstVertex;
-        Color<T> f = phongEvalLogCos(theta[v[0].slot], v[0].logCos);
-        for (std::uint32_t k = 1; k < term.vertexCount; ++k)
-            f *= phongEvalLogCos(theta[v[k].slot], v[k].logCos);
-        for (int c = 0; c < 3; ++c) sum[c] += f[c] * double(term.constant[c]);
+        const Color<T> f = termBrdfs(paths, paths.terms[t], theta);
+        for (int c = 0; c < 3; ++c) sum[c] += f[c] * double(paths.terms[t].constant[c]);
     }
     return sum;
+}
+
+// The variance of one path of the pixel at theta, each term taken as a path of its own (terms of
+// one camera path also covary; that is left out): N sum t^2 - (sum t)^2 over its terms t, each of
+// which holds 1 / N of its path, N the pixel's paths. An image rendered with independent samples
+// varies by this over its paths per pixel there.
+inline Color3 replayPathVariance(const PathSet& paths, std::size_t pixel,
+                                 const PhongMaterial* theta) {
+    Color3 sum = Color3::Zero(), squares = Color3::Zero();
+    const std::uint32_t end = paths.pixelStart[pixel + 1];
+    for (std::uint32_t t = paths.pixelStart[pixel]; t < end; ++t) {
+        const Color3 x =
+            termBrdfs(paths, paths.terms[t], theta) * paths.terms[t].constant.cast<double>();
+        sum += x;
+        squares += x * x;
+    }
+    const double n = paths.pixelPaths.empty() ? paths.spp : paths.pixelPaths[pixel];
+    return (n * squares - sum * sum).max(0.0);
 }
 
 }  // namespace phongfit

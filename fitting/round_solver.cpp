@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "holding.h"
+#include "image_noise.h"
 #include "precision_target.h"
 #include "standard_errors.h"
 #include "start_scan.h"
@@ -62,8 +63,12 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out) {
         out.pathShare = recordingShare(objective_, at_, instrumental_ ? &instruments_ : nullptr,
                                        analysis_, params_.held());
     out.materials.clear();
-    for (int m = 0; m < params_.materialCount(); ++m)
+    const std::vector<std::vector<double>> imageNoise =
+        imageNoiseStd(objective_, at_.y, params_.held());
+    for (int m = 0; m < params_.materialCount(); ++m) {
         out.materials.push_back(materialFit(params_, m, out.naturalStd[m]));
+        setImageNoise<P>(out.materials.back(), imageNoise[m]);
+    }
     const ExposureBlock& exposure = params_.exposure();
     if (exposure.fitted()) out.exposure = exposureFit(params_, out.naturalStd[exposure.slot()]);
     out.rmse = std::sqrt(analysis_.squares / (3.0 * double(prep.seeingMaterial)));

@@ -14,6 +14,7 @@
 #include "error.h"
 #include "fit_input.h"
 #include "identifiability.h"
+#include "image_noise.h"
 #include "memory_info.h"
 #include "memory_plan.h"
 #include "parameter_state.h"
@@ -27,6 +28,20 @@
 namespace phongfit {
 
 namespace {
+
+// Whether the image's own noise (MaterialFit::kdImageStd, ...) leaves every parameter of
+// `materials` as precise as `target` asks, as planPrecision measures it: kd and ks relative to
+// max(value, kPrecisionFloor), n through log n.
+bool imageNoiseMeetsPrecision(const std::vector<MaterialFit>& materials, double target) {
+    for (const MaterialFit& m : materials) {
+        for (int c = 0; c < 3; ++c)
+            if (m.kdImageStd[c] > target * std::max(m.kd[c], kPrecisionFloor) ||
+                m.ksImageStd[c] > target * std::max(m.ks[c], kPrecisionFloor))
+                return false;
+        if (m.logNImageStd > target) return false;
+    }
+    return true;
+}
 
 // The most paths, relative to the first round's, that rounds which do not settle grow to (the
 // default 4 paths a pixel become 256). Cells of the recovery matrix that flipped between two states
@@ -418,6 +433,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
              why == "sharper lobe"))
             widenToDrift(result);
     }
+    // The image's own noise, which the sandwich misses where one pixel holds a parameter; a
+    // precision it does not allow was the noise floor's.
+    if (result.stopReason == "precision" &&
+        !imageNoiseMeetsPrecision(result.materials, options.precision))
+        result.stopReason = "noise floor";
+    for (MaterialFit& m : result.materials) applyImageNoise(m);
     for (MaterialFit& m : result.materials) m.nStd = std::max(m.nStd, logNormalStd(m.n, m.logNStd));
     if (!exact) {
         // A converged estimate whose rounds scatter by as much as a parameter is not resolved.

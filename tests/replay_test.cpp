@@ -118,6 +118,44 @@ TEST(Replay, EqualsDirectEvaluationOfTheModel) {
     EXPECT_GT(withTerms, 40);
 }
 
+// Each term taken as one of the pixel's N paths (spp, or pixelPaths where set): N sum t^2 - (sum
+// t)^2, at least 0, with t the terms' values at theta (their constants hold 1 / N).
+TEST(Replay, PathVarianceIsTheSpreadOfThePixelsTerms) {
+    RandomPaths r(60, 2);
+    const std::vector<PhongMaterial> theta = twoMaterials();
+    const auto expected = [&](int p, double paths) -> Color3 {
+        Color3 sum = Color3::Zero(), squares = Color3::Zero();
+        for (const DirectTerm& t : r.direct[p]) {
+            Color3 f = Color3::Ones();
+            for (const DirectVertex& v : t.vertices) f *= phongEval(theta[v.slot], v.wi, v.wo);
+            sum += t.constant * f;
+            squares += (t.constant * f).square();
+        }
+        return (paths * squares - sum.square()).max(0.0);
+    };
+    int spread = 0;
+    for (int p = 0; p < r.paths.width; ++p) {
+        const Color3 variance = replayPathVariance(r.paths, p, theta.data());
+        const Color3 truth = expected(p, r.paths.spp);
+        spread += (truth > 0).any();
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(variance[c], truth[c], 1e-4 * (1 + truth[c])) << p << " " << c;
+    }
+    EXPECT_GT(spread, 30);
+    // Per-pixel path counts where a recording spent more paths in some pixels; a pixel with no
+    // term has no spread.
+    for (int p = 0; p < r.paths.width; ++p) r.paths.pixelPaths.push_back(std::uint32_t(4 + p % 7));
+    for (int p = 0; p < r.paths.width; ++p) {
+        const Color3 variance = replayPathVariance(r.paths, p, theta.data());
+        const Color3 truth = expected(p, 4 + p % 7);
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(variance[c], truth[c], 1e-4 * (1 + truth[c])) << p << " " << c;
+        if (r.direct[p].empty()) {
+            EXPECT_TRUE((variance == 0).all()) << p;
+        }
+    }
+}
+
 TEST(Replay, VertexBehindTheLobeContributesOnlyDiffuse) {
     PathSet paths;
     paths.width = paths.height = 1;

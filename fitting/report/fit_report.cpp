@@ -22,13 +22,16 @@ nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
     nlohmann::json out = nlohmann::json::object();
     for (std::size_t s = 0; s < materials.size(); ++s) {
         const MaterialFit& m = materials[s];
-        out[ids[s]] = {{"kd", rgb(m.kd)},
-                       {"ks", rgb(m.ks)},
-                       {"n", m.n},
-                       {"kd_std", rgb(m.kdStd)},
-                       {"ks_std", rgb(m.ksStd)},
-                       {"n_std", m.nStd},
-                       {"unconstrained", m.unconstrained}};
+        out[ids[s]] = {
+            {"kd", rgb(m.kd)},
+            {"ks", rgb(m.ks)},
+            {"n", m.n},
+            {"kd_std", rgb(m.kdStd)},
+            {"ks_std", rgb(m.ksStd)},
+            {"n_std", m.nStd},
+            {"image_noise_std",
+             {{"kd", rgb(m.kdImageStd)}, {"ks", rgb(m.ksImageStd)}, {"n", m.n * m.logNImageStd}}},
+            {"unconstrained", m.unconstrained}};
     }
     return out;
 }
