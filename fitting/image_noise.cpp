@@ -53,6 +53,8 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                                                const std::vector<HeldParams>& held) {
     const UsedPixels& prep = objective.pixels();
     const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
+    // Exact recordings have no paths' variance to model the image's noise on.
+    if (objective.exact()) return noStd(int(held.size()), P);
     const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size)};
     std::vector<double> cross(prep.seeingMaterial), variances(prep.seeingMaterial);
     const NoiseSums sums = objective.sumPixels(

@@ -19,7 +19,7 @@ namespace phongfit {
 
 // Per block, the natural parameters' standard errors at the flat natural coordinates `y` from the
 // image's modelled noise alone (least squares' sandwich over the pixels that see a material); 0
-// for `held` ones and where the image shows no noise beyond the model's.
+// for `held` ones, where the image shows no noise beyond the model's, and for exact recordings.
 template <int P>
 std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                                                const std::vector<double>& y,

@@ -77,6 +77,8 @@ public:
     Eigen::Vector3d residual(const PathSet& paths, const UsedPixel& u, const double* y,
                              Scratch& scratch, std::vector<Jacobian>* jacobians) const;
 
+    // The two recordings are one exact, noise-free list.
+    bool exact() const { return recordings_[0] == recordings_[1]; }
     // Recording k (0 or 1) of a view.
     const PathSet& recording(int k, std::uint32_t view) const { return (*recordings_[k])[view]; }
     // The variance of one path of pixel u in recording k at y (replayPathVariance), in the
