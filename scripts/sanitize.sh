@@ -22,7 +22,10 @@
 #   sharded bench), DiligentBall.ExponentIsStableBetweenOddAndEvenLights (the capture fit: the
 #   other DiligentBall and AlbedoMap tests),
 #   Synth.ResumesAfterSigintWithTheSameFilesAsAnUninterruptedRun (synth's interrupt and resume:
-#   FitSynthInterrupt.SynthKeepsFinishedSamplesAndResumes);
+#   FitSynthInterrupt.SynthKeepsFinishedSamplesAndResumes),
+#   ImageNoise.APixelThatHoldsTheLobeBringsItsNoiseIntoTheStandardErrors (52 s under ASan, 1.7 s
+#   without: the image-noise model runs in every fit on noisy recordings, e.g.
+#   Fitter.RoundsOnFreshNoisyPathSetsConvergeToTheTruth and the small Cornell round trip);
 # - the demo (FitCommand.DemoRendersFitsBackAndPrintsTheErrors, the longest test under ASan: 2.5-4
 #   min, its 16-spp image growing the paths 16x): a Cornell render and scene fit, the paths' growth
 #   to the noise floor and the sharper probe, which run under ASan in
@@ -60,6 +63,7 @@ slow='RoundTrip.CornellBoxWithUnknownExposure|RoundTrip.CornellBoxFromAStartWith
 slow+='|RoundTrip.AreaLightSharpLobeIsFoundWithAdaptivePaths|RoundTrip/SubPixelHighlight\.'
 slow+='|Bench.RecoveryMatrixSubsetPassesAtDefaults|DiligentBall.ExponentIsStableBetweenOddAndEvenLights'
 slow+='|Synth.ResumesAfterSigintWithTheSameFilesAsAnUninterruptedRun'
+slow+='|ImageNoise.APixelThatHoldsTheLobeBringsItsNoiseIntoTheStandardErrors'
 slow+='|FitCommand.DemoRendersFitsBackAndPrintsTheErrors'
 exclude=${SANITIZE_EXCLUDE-$slow}
 (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900 -LE slurm \
