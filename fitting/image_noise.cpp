@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 
-#include "material_params.h"
 #include "standard_errors.h"
 
 namespace phongfit {
@@ -51,10 +50,10 @@ template <int P>
 std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                                                const std::vector<double>& y,
                                                const std::vector<HeldParams>& held) {
-    const UsedPixels& prep = objective.pixels();
-    const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
     // Exact recordings have no paths' variance to model the image's noise on.
     if (objective.exact()) return noStd(int(held.size()), P);
+    const UsedPixels& prep = objective.pixels();
+    const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
     const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size)};
     std::vector<double> cross(prep.seeingMaterial), variances(prep.seeingMaterial);
     const NoiseSums sums = objective.sumPixels(
@@ -85,16 +84,6 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
     return naturalStd<P>(sums.gram, noiseScale(cross, variances) * sums.noise, held);
 }
 
-template <int P>
-void setImageNoise(MaterialFit& fit, const std::vector<double>& stdNatural) {
-    using L = BlockLayout<P>;
-    for (int c = 0; c < 3; ++c) {
-        fit.kdImageStd[c] = stdNatural[L::diffuse(L::group(c))];
-        fit.ksImageStd[c] = stdNatural[L::specular(L::group(c))];
-    }
-    fit.logNImageStd = stdNatural[L::kLogN];
-}
-
 void applyImageNoise(MaterialFit& fit) {
     fit.kdStd = fit.kdStd.max(fit.kdImageStd);
     fit.ksStd = fit.ksStd.max(fit.ksImageStd);
@@ -104,8 +93,6 @@ void applyImageNoise(MaterialFit& fit) {
     }
 }
 
-template void setImageNoise<kRgbBlock>(MaterialFit&, const std::vector<double>&);
-template void setImageNoise<kGreyBlock>(MaterialFit&, const std::vector<double>&);
 template std::vector<std::vector<double>> imageNoiseStd<kRgbBlock>(Objective<kRgbBlock>&,
                                                                    const std::vector<double>&,
                                                                    const std::vector<HeldParams>&);

@@ -25,11 +25,6 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                                                const std::vector<double>& y,
                                                const std::vector<HeldParams>& held);
 
-// Sets `fit`'s image-noise standard errors (MaterialFit::kdImageStd, ...) from its block's
-// natural ones.
-template <int P>
-void setImageNoise(MaterialFit& fit, const std::vector<double>& stdNatural);
-
 // Raises `fit`'s standard errors to its image-noise ones (n's through log n).
 void applyImageNoise(MaterialFit& fit);
 

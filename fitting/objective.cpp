@@ -43,6 +43,14 @@ double Objective<P>::lossWeight(double squaredNorm) const {
 }
 
 template <int P>
+std::span<const std::uint32_t> Objective<P>::materialSlots(const UsedPixel& u) const {
+    const std::span<const std::uint32_t> slots = prep_.slotsOf(u);
+    const bool exposed =
+        exposure_.fitted() && !slots.empty() && slots.back() == std::uint32_t(exposure_.slot());
+    return slots.first(slots.size() - exposed);
+}
+
+template <int P>
 Eigen::Vector3d Objective<P>::residual(int k, const UsedPixel& u, const double* y, Scratch& scratch,
                                        bool jacobians) const {
     if (!instrumental_) return pooledResidual(u, y, scratch, jacobians);
@@ -69,10 +77,8 @@ template <int P>
 Eigen::Vector3d Objective<P>::residual(const PathSet& paths, const UsedPixel& u, const double* y,
                                        Scratch& scratch, std::vector<Jacobian>* jacobians) const {
     using L = BlockLayout<P>;
-    const std::span<const std::uint32_t> slots = prep_.slotsOf(u);
-    const bool exposed =
-        exposure_.fitted() && !slots.empty() && slots.back() == std::uint32_t(exposure_.slot());
-    const std::span<const std::uint32_t> materials = slots.first(slots.size() - exposed);
+    const std::span<const std::uint32_t> materials = materialSlots(u);
+    const bool exposed = materials.size() < u.slotCount;
     const double s = exposure_.value<P>(y);
     const double w = weight(u);
     Color3 predicted = Color3::Zero();
@@ -100,10 +106,7 @@ Eigen::Vector3d Objective<P>::residual(const PathSet& paths, const UsedPixel& u,
 template <int P>
 Eigen::Vector3d Objective<P>::pathVariance(int k, const UsedPixel& u, const double* y,
                                            Scratch& scratch) const {
-    const std::span<const std::uint32_t> slots = prep_.slotsOf(u);
-    const bool exposed =
-        exposure_.fitted() && !slots.empty() && slots.back() == std::uint32_t(exposure_.slot());
-    for (std::uint32_t m : slots.first(slots.size() - exposed))
+    for (std::uint32_t m : materialSlots(u))
         scratch.plain[m] = naturalToPhong<P>(y + std::size_t(m) * P);
     const double scale = weight(u) * exposure_.value<P>(y);
     return (scale * scale * replayPathVariance(recording(k, u.view), u.pixel, scratch.plain.data()))

@@ -113,6 +113,9 @@ public:
     double crossScale(const double* y, const std::vector<double>& weights);
 
 private:
+    // The pixel's slots that are materials (all but the exposure's, when it is fitted).
+    std::span<const std::uint32_t> materialSlots(const UsedPixel& u) const;
+
     const std::vector<Observation>* observations_;
     int blocks_;
     ExposureBlock exposure_;

@@ -12,7 +12,7 @@ namespace {
 // What a relative precision is taken of: kd and ks max(value, kPrecisionFloor), log n 1.
 template <int P>
 double precisionScale(int i, double value) {
-    return i == BlockLayout<P>::kLogN ? 1.0 : std::max(std::abs(value), kPrecisionFloor);
+    return i == BlockLayout<P>::kLogN ? 1.0 : reflectancePrecisionScale(value);
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "analysis.h"
@@ -24,6 +26,11 @@ inline constexpr double kMostPathGrowth = 16;
 // matrix's absolute tolerance, 0.003. Relative to 0.01 (kReflectanceFloor, the convergence test's)
 // a ks of 0 under a noisy sky was asked for 1e-4 and took 57-131 s.
 inline constexpr double kPrecisionFloor = 0.1;
+
+// What a reflectance's relative precision is taken of.
+inline double reflectancePrecisionScale(double value) {
+    return std::max(std::abs(value), kPrecisionFloor);
+}
 
 // Per block, the share of each parameter's variance that is the recordings' own noise (the rest is
 // the image's), at the linearization `at` of a round's instrumental-variables solution `analysis`:

@@ -66,8 +66,11 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out) {
     const std::vector<std::vector<double>> imageNoise =
         imageNoiseStd(objective_, at_.y, params_.held());
     for (int m = 0; m < params_.materialCount(); ++m) {
-        out.materials.push_back(materialFit(params_, m, out.naturalStd[m]));
-        setImageNoise<P>(out.materials.back(), imageNoise[m]);
+        MaterialFit& fit = out.materials.emplace_back(materialFit(params_, m, out.naturalStd[m]));
+        const MaterialFit image = materialFit(params_, m, imageNoise[m]);
+        fit.kdImageStd = image.kdStd;
+        fit.ksImageStd = image.ksStd;
+        fit.logNImageStd = image.logNStd;
     }
     const ExposureBlock& exposure = params_.exposure();
     if (exposure.fitted()) out.exposure = exposureFit(params_, out.naturalStd[exposure.slot()]);

@@ -30,13 +30,13 @@ namespace phongfit {
 namespace {
 
 // Whether the image's own noise (MaterialFit::kdImageStd, ...) leaves every parameter of
-// `materials` as precise as `target` asks, as planPrecision measures it: kd and ks relative to
-// max(value, kPrecisionFloor), n through log n.
+// `materials` as precise as `target` asks, as planPrecision measures it (kd and ks relative to
+// reflectancePrecisionScale, n through log n).
 bool imageNoiseMeetsPrecision(const std::vector<MaterialFit>& materials, double target) {
     for (const MaterialFit& m : materials) {
         for (int c = 0; c < 3; ++c)
-            if (m.kdImageStd[c] > target * std::max(m.kd[c], kPrecisionFloor) ||
-                m.ksImageStd[c] > target * std::max(m.ks[c], kPrecisionFloor))
+            if (m.kdImageStd[c] > target * reflectancePrecisionScale(m.kd[c]) ||
+                m.ksImageStd[c] > target * reflectancePrecisionScale(m.ks[c]))
                 return false;
         if (m.logNImageStd > target) return false;
     }
