@@ -25,14 +25,37 @@ Color<T> termBrdfs(const PathSet& paths, const PathTerm& term, const PhongParams
     return f;
 }
 
+// sum += f(logCos) * constant for a term of one vertex (direct light on a fitted material: most of
+// a scene's terms) with material p: phongEvalLogCos's arithmetic, channel by channel, with no
+// colour of Jets in between and plain numbers where it multiplied by constant Jets (the same
+// values and derivatives to the last bit; the replay is where the fit's time goes).
+template <typename T>
+void addOneVertexTerm(Color<T>& sum, const PhongParams<T>& p, float logCos,
+                      const Color<float>& constant) {
+    const T power = phongPower(p.n, logCos);
+    if (power == T(0)) {
+        for (int c = 0; c < 3; ++c) sum[c] += p.kd[c] * kInvPi * double(constant[c]);
+        return;
+    }
+    const T specular = (p.n + 2.0) * (0.5 * kInvPi) * power;
+    for (int c = 0; c < 3; ++c)
+        sum[c] += (p.kd[c] * kInvPi + p.ks[c] * specular) * double(constant[c]);
+}
+
 template <typename T>
 Color<T> replayPixel(const PathSet& paths, std::size_t pixel, const PhongParams<T>* theta) {
     Color<T> sum;
     for (int c = 0; c < 3; ++c) sum[c] = T(double(paths.background[pixel][c]));
     const std::uint32_t end = paths.pixelStart[pixel + 1];
     for (std::uint32_t t = paths.pixelStart[pixel]; t < end; ++t) {
-        const Color<T> f = termBrdfs(paths, paths.terms[t], theta);
-        for (int c = 0; c < 3; ++c) sum[c] += f[c] * double(paths.terms[t].constant[c]);
+        const PathTerm& term = paths.terms[t];
+        if (term.vertexCount == 1) {
+            const PathVertex& v = paths.vertices[term.firstVertex];
+            addOneVertexTerm(sum, theta[v.slot], v.logCos, term.constant);
+            continue;
+        }
+        const Color<T> f = termBrdfs(paths, term, theta);
+        for (int c = 0; c < 3; ++c) sum[c] += f[c] * double(term.constant[c]);
     }
     return sum;
 }
