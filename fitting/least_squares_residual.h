@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "material_params.h"
+#include "trial_point_cache.h"
 
 namespace phongfit {
 
@@ -57,10 +58,13 @@ public:
         Eigen::Map<Eigen::VectorXd> out(residuals, f + 1);
         double squares = 0;
         if (!wantJacobian) {
+            if (trialPoints_.find(y, residuals)) return true;
             sums_(y.data(), squares, nullptr, nullptr);
             out.setZero();
             out[f] = std::sqrt(std::max(squares, 0.0));
-            return std::isfinite(squares);
+            if (!std::isfinite(squares)) return false;
+            trialPoints_.store(y, residuals, int(f + 1));
+            return true;
         }
         Eigen::VectorXd gradient;
         Eigen::MatrixXd gramian;
@@ -98,6 +102,7 @@ private:
     std::vector<std::uint32_t> slots_;
     std::span<const HeldParams> held_;
     std::vector<int> free_;
+    mutable TrialPointCache trialPoints_;
 };
 
 }  // namespace phongfit

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "material_params.h"
+#include "trial_point_cache.h"
 
 namespace phongfit {
 
@@ -49,12 +50,16 @@ public:
                   double** jacobians) const override {
         const std::vector<double> y = naturalFromBlocks<P>(parameters, slots_, held_);
         const bool wantJacobian = wantsJacobian(jacobians, slots_.size());
+        if (!wantJacobian && trialPoints_.find(y, residuals)) return true;
         Eigen::VectorXd g;
         Eigen::MatrixXd dg;
         moments_(y.data(), g, wantJacobian ? &dg : nullptr);
         const Eigen::Index rows = Eigen::Index(free_.size());
         Eigen::Map<Eigen::VectorXd>(residuals, rows) = whitening_ * g(free_);
-        if (!wantJacobian) return true;
+        if (!wantJacobian) {
+            trialPoints_.store(y, residuals, int(rows));
+            return true;
+        }
         const Eigen::MatrixXd whitened = whitening_ * dg(free_, Eigen::all);
         for (std::size_t b = 0; b < slots_.size(); ++b) {
             if (jacobians[b] == nullptr) continue;
@@ -73,6 +78,7 @@ private:
     std::span<const HeldParams> held_;
     std::vector<int> free_;
     Eigen::MatrixXd whitening_;
+    mutable TrialPointCache trialPoints_;
 };
 
 }  // namespace phongfit

@@ -453,5 +453,51 @@ TEST(MomentResidual, PassesGradientCheckerWithHeldDiffuse) {
     checkMomentGradients<kRgbBlock>(held);
 }
 
+// Dogleg tries the same trial point again after a rejected step while its region is larger than
+// the step: the blocks hand back the residuals they computed there instead of summing every pixel
+// again, the same numbers; a point with Jacobians, or a new point, is summed.
+TEST(TrialPointCache, ARepeatedTrialPointIsNotSummedAgain) {
+    constexpr int P = kGreyBlock;
+    int leastSquaresSums = 0, momentSums = 0;
+    const auto sums = [&](const double* y, double& squares, Eigen::VectorXd* gradient,
+                          Eigen::MatrixXd* gramian) {
+        ++leastSquaresSums;
+        squares = 1 + y[0] * y[0] + y[2] * y[2];
+        if (gradient == nullptr) return;
+        *gradient = Eigen::Vector3d(2 * y[0], 0, 2 * y[2]);
+        *gramian = 2 * Eigen::Matrix3d::Identity();
+    };
+    const auto moments = [&](const double* y, Eigen::VectorXd& g, Eigen::MatrixXd* dg) {
+        ++momentSums;
+        g = Eigen::Vector3d(y[0] - 0.5, y[1] - 0.1, y[2] - 3);
+        if (dg != nullptr) *dg = Eigen::Matrix3d::Identity();
+    };
+    const std::vector<HeldParams> held(1);
+    const LeastSquaresResidual<P> leastSquares(sums, {0}, held, {0, 1, 2});
+    const MomentResidual<P> moment(moments, {0}, held, {0, 1, 2}, Eigen::Matrix3d::Identity());
+    const double a[P] = {0.6, 0.3, 2.0}, b[P] = {0.5, 0.2, 3.0};
+    const double* at[1] = {a};
+    const double* other[1] = {b};
+    double first[P + 1], again[P + 1], moved[P + 1], jacobian[(P + 1) * P];
+    double* jacobians[1] = {jacobian};
+    for (const ceres::CostFunction* block : {static_cast<const ceres::CostFunction*>(&leastSquares),
+                                             static_cast<const ceres::CostFunction*>(&moment)}) {
+        const int* calls = block == &leastSquares ? &leastSquaresSums : &momentSums;
+        const int rows = block->num_residuals();
+        ASSERT_TRUE(block->Evaluate(at, first, nullptr));
+        ASSERT_TRUE(block->Evaluate(at, again, nullptr));
+        EXPECT_EQ(*calls, 1);
+        EXPECT_TRUE(std::equal(first, first + rows, again));
+        ASSERT_TRUE(block->Evaluate(other, moved, nullptr));
+        EXPECT_EQ(*calls, 2);
+        EXPECT_FALSE(std::equal(first, first + rows, moved));
+        ASSERT_TRUE(block->Evaluate(at, again, nullptr));
+        EXPECT_EQ(*calls, 3);
+        EXPECT_TRUE(std::equal(first, first + rows, again));
+        ASSERT_TRUE(block->Evaluate(at, again, jacobians));
+        EXPECT_EQ(*calls, 4);
+    }
+}
+
 }  // namespace
 }  // namespace phongfit
