@@ -225,14 +225,30 @@ TEST(Replay, JetGradientsMatchCentralDifferences) {
     EXPECT_GT(checked, 200);
 }
 
-// The fitter's replay with one slot seeded (its one-vertex terms' Jets written out) gives the
-// generic Jet replay's values and derivatives bit for bit, lobes exactly 0 (n 1e6 off its peak,
-// vertices behind it) included.
-TEST(Replay, SeededReplayIsTheJetReplayBitForBit) {
+// The replays of one-vertex terms (addOneVertexTerm, and with one slot seeded the Jets written
+// out) give what every term through phongEvalLogCos gives (termBrdfs), values and derivatives, bit
+// for bit, lobes exactly 0 (n 1e6 off its peak, vertices behind it) included.
+template <typename T>
+Color<T> termByTerm(const PathSet& paths, int pixel, const PhongParams<T>* theta) {
+    Color<T> sum;
+    for (int c = 0; c < 3; ++c) sum[c] = T(double(paths.background[pixel][c]));
+    for (std::uint32_t t = paths.pixelStart[pixel]; t < paths.pixelStart[pixel + 1]; ++t) {
+        const Color<T> f = termBrdfs(paths, paths.terms[t], theta);
+        for (int c = 0; c < 3; ++c) sum[c] += f[c] * double(paths.terms[t].constant[c]);
+    }
+    return sum;
+}
+
+TEST(Replay, OneVertexTermsAreTheBrdfsBitForBit) {
     const RandomPaths r(60, 5);
     std::vector<PhongMaterial> theta = twoMaterials();
     for (const double n : {30.0, 1e6}) {
         theta[0].n = n;
+        for (int p = 0; p < r.paths.width; ++p) {
+            const Color3 value = replayPixel(r.paths, p, theta.data()),
+                         reference = termByTerm(r.paths, p, theta.data());
+            for (int c = 0; c < 3; ++c) EXPECT_EQ(value[c], reference[c]) << "pixel " << p;
+        }
         for (std::uint32_t seeded = 0; seeded < 2; ++seeded) {
             std::vector<PhongParams<PackedJet>> jets(2);
             for (std::uint32_t s = 0; s < 2; ++s) {
@@ -241,14 +257,16 @@ TEST(Replay, SeededReplayIsTheJetReplayBitForBit) {
                                       : constantParams<PackedJet>(theta[s]);
             }
             for (int p = 0; p < r.paths.width; ++p) {
-                const Color<PackedJet> generic = replayPixel(r.paths, p, jets.data());
-                const Color<PackedJet> seededReplay =
-                    replaySeededPixel(r.paths, p, jets.data(), seeded);
-                for (int c = 0; c < 3; ++c) {
-                    EXPECT_EQ(seededReplay[c].a, generic[c].a) << "pixel " << p << " n " << n;
-                    for (int i = 0; i < 3; ++i)
-                        EXPECT_EQ(seededReplay[c].v[i], generic[c].v[i])
-                            << "pixel " << p << " n " << n << " derivative " << i;
+                const Color<PackedJet> reference = termByTerm(r.paths, p, jets.data());
+                for (const Color<PackedJet>& replayed :
+                     {replayPixel(r.paths, p, jets.data()),
+                      replaySeededPixel(r.paths, p, jets.data(), seeded)}) {
+                    for (int c = 0; c < 3; ++c) {
+                        EXPECT_EQ(replayed[c].a, reference[c].a) << "pixel " << p << " n " << n;
+                        for (int i = 0; i < 3; ++i)
+                            EXPECT_EQ(replayed[c].v[i], reference[c].v[i])
+                                << "pixel " << p << " n " << n << " derivative " << i;
+                    }
                 }
             }
         }
