@@ -42,22 +42,32 @@ void addOneVertexTerm(Color<T>& sum, const PhongParams<T>& p, float logCos,
         sum[c] += (p.kd[c] * kInvPi + p.ks[c] * specular) * double(constant[c]);
 }
 
-template <typename T>
-Color<T> replayPixel(const PathSet& paths, std::size_t pixel, const PhongParams<T>* theta) {
+// The pixel's background plus its terms, `addOneVertex(sum, vertex, constant)` adding those of
+// one vertex (replayPixel's addOneVertexTerm, or the fitter's seeded Jets) and termBrdfs the rest.
+template <typename T, typename AddOneVertex>
+Color<T> replayTerms(const PathSet& paths, std::size_t pixel, const PhongParams<T>* theta,
+                     AddOneVertex addOneVertex) {
     Color<T> sum;
     for (int c = 0; c < 3; ++c) sum[c] = T(double(paths.background[pixel][c]));
     const std::uint32_t end = paths.pixelStart[pixel + 1];
     for (std::uint32_t t = paths.pixelStart[pixel]; t < end; ++t) {
         const PathTerm& term = paths.terms[t];
         if (term.vertexCount == 1) {
-            const PathVertex& v = paths.vertices[term.firstVertex];
-            addOneVertexTerm(sum, theta[v.slot], v.logCos, term.constant);
+            addOneVertex(sum, paths.vertices[term.firstVertex], term.constant);
             continue;
         }
         const Color<T> f = termBrdfs(paths, term, theta);
         for (int c = 0; c < 3; ++c) sum[c] += f[c] * double(term.constant[c]);
     }
     return sum;
+}
+
+template <typename T>
+Color<T> replayPixel(const PathSet& paths, std::size_t pixel, const PhongParams<T>* theta) {
+    return replayTerms(paths, pixel, theta,
+                       [theta](Color<T>& sum, const PathVertex& v, const Color<float>& constant) {
+                           addOneVertexTerm(sum, theta[v.slot], v.logCos, constant);
+                       });
 }
 
 // The variance of one path of the pixel at theta, each term taken as a path of its own (terms of

@@ -11,9 +11,7 @@
 
 #include <ceres/jet.h>
 
-#include <cmath>
 #include <cstdint>
-#include <limits>
 #include <span>
 #include <vector>
 
@@ -54,11 +52,7 @@ PhongParams<T> constantParams(const PhongMaterial& m) {
 // rate, `BM_ReplayJet*`).
 inline void addSeededOneVertexTerm(Color<PackedJet>& sum, const PhongParams<PackedJet>& p,
                                    float logCos, const Color<float>& constant) {
-    const double n = p.n.a, l = double(logCos), x = n * l;
-    const double power =
-        logCos == -std::numeric_limits<float>::infinity() || x < expIsZeroBelow<double>()
-            ? 0.0
-            : std::exp(x);
+    const double n = p.n.a, x = n * double(logCos), power = phongPower(n, logCos);
     if (power == 0) {
         for (int c = 0; c < 3; ++c) {
             sum[c].a += p.kd[c].a * kInvPi * double(constant[c]);
@@ -81,22 +75,14 @@ inline void addSeededOneVertexTerm(Color<PackedJet>& sum, const PhongParams<Pack
 inline Color<PackedJet> replaySeededPixel(const PathSet& paths, std::size_t pixel,
                                           const PhongParams<PackedJet>* theta,
                                           std::uint32_t seeded) {
-    Color<PackedJet> sum;
-    for (int c = 0; c < 3; ++c) sum[c] = PackedJet(double(paths.background[pixel][c]));
-    const std::uint32_t end = paths.pixelStart[pixel + 1];
-    for (std::uint32_t t = paths.pixelStart[pixel]; t < end; ++t) {
-        const PathTerm& term = paths.terms[t];
-        const PathVertex& v = paths.vertices[term.firstVertex];
-        if (term.vertexCount == 1 && v.slot == seeded) {
-            addSeededOneVertexTerm(sum, theta[v.slot], v.logCos, term.constant);
-        } else if (term.vertexCount == 1) {
-            addOneVertexTerm(sum, theta[v.slot], v.logCos, term.constant);
-        } else {
-            const Color<PackedJet> f = termBrdfs(paths, term, theta);
-            for (int c = 0; c < 3; ++c) sum[c] += f[c] * double(term.constant[c]);
-        }
-    }
-    return sum;
+    return replayTerms(
+        paths, pixel, theta,
+        [theta, seeded](Color<PackedJet>& sum, const PathVertex& v, const Color<float>& constant) {
+            if (v.slot == seeded)
+                addSeededOneVertexTerm(sum, theta[v.slot], v.logCos, constant);
+            else
+                addOneVertexTerm(sum, theta[v.slot], v.logCos, constant);
+        });
 }
 
 // The pixel's prediction and its derivatives with respect to the natural coordinates (kd, ks,

@@ -16,8 +16,9 @@ class TrialPointCache {
 public:
     // Copies the residuals stored for `y` into `residuals` and returns true, or returns false.
     bool find(const std::vector<double>& y, double* residuals) const {
-        if (valid_ && y == y_) std::copy(residuals_.begin(), residuals_.end(), residuals);
-        return valid_ && y == y_;
+        if (!valid_ || y != y_) return false;
+        std::copy(residuals_.begin(), residuals_.end(), residuals);
+        return true;
     }
 
     void store(const std::vector<double>& y, const double* residuals, int count) {
