@@ -93,6 +93,7 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
     FitOptions options;
     options.maxRounds = o.rounds;
     options.precision = o.precision;
+    options.timeBudget = o.timeBudget;
     options.grey = s.grey;
     options.threads = o.threads;
     options.stopRequested = interruptRequested;
@@ -150,6 +151,7 @@ json settingsJson(const BenchFitOptions& o) {
             {"rounds", o.rounds},
             {"adaptive_spp", o.adaptiveSpp},
             {"precision", o.precision},
+            {"time_budget", o.timeBudget},
             {"fail_threshold", o.failThreshold}};
 }
 
@@ -168,6 +170,7 @@ void applySettings(const json& s, BenchFitOptions& o) {
     o.rounds = s.at("rounds").get<int>();
     o.adaptiveSpp = s.at("adaptive_spp").get<int>();
     o.precision = s.value("precision", 0.0);  // runs before it had none
+    o.timeBudget = s.value("time_budget", 0.0);
     o.failThreshold = s.at("fail_threshold").get<double>();
 }
 

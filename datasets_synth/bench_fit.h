@@ -28,6 +28,7 @@ struct BenchFitOptions {
     int rounds = 6;
     int adaptiveSpp = 0;                   // SceneRecording::adaptiveSpp (fit --adaptive-spp)
     double precision = kDefaultPrecision;  // FitOptions::precision (fit --precision)
+    double timeBudget = 0;  // FitOptions::timeBudget of each fit (fit --time-budget); 0: none
     // A fit fails when it throws, returns a non-finite value, or misses a parameter by more than
     // this relative error.
     double failThreshold = 0.5;

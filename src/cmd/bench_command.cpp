@@ -82,6 +82,10 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
                     "target relative standard error of every free parameter, as fit --precision")
         ->check(CLI::Range(0.0, 0.5))
         ->capture_default_str();
+    fit->add_option("--time-budget", f->timeBudget,
+                    "seconds each fit may take, as fit --time-budget (0: no budget)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
     fit->add_option("--fail-threshold", f->failThreshold,
                     "a fit with a relative error above this fails")
         ->capture_default_str();
@@ -100,7 +104,7 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
             for (const char* option :
                  {"dataset", "--output", "--shard", "--spp-per-round", "--start-kd", "--start-ks",
                   "--start-n", "--start-n-factor", "--rounds", "--adaptive-spp", "--precision",
-                  "--fail-threshold"})
+                  "--time-budget", "--fail-threshold"})
                 if (fit->count(option) > 0)
                     throw Error(fmt::format(
                         "--merge DIR takes no {}: the run's settings are in DIR/bench_run.json",

@@ -263,6 +263,34 @@ TEST_F(Bench, RecoveryMatrixSubsetPassesAtDefaults) {
     EXPECT_EQ(text.find("FAIL"), std::string::npos) << text;
 }
 
+// --time-budget bounds every fit as fit --time-budget does: a budget spent by the first round
+// leaves one round, stopped by the budget, and the run's settings record it.
+TEST_F(Bench, FitTimeBudgetBoundsEveryFit) {
+    const auto synth =
+        run({"synth", PHONGFIT_CONFIGS_DIR "/small.json", "-o", path("small").string(), "--quiet"});
+    ASSERT_EQ(synth.exitCode, 0) << synth.err;
+    const auto r = run({"bench", "fit", path("small").string(), "--spp-per-round", "4",
+                        "--time-budget", "1e-6", "-o", path("fit").string(), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::string header;
+    const auto rows = readCsv(path("fit/recovery.csv"), header);
+    ASSERT_EQ(rows.size(), 4u);
+    for (const auto& row : rows) {
+        const json fit =
+            json::parse(std::ifstream(path("fit/fits/spp4/" + row.at(0) + "/fit.json")));
+        EXPECT_EQ(fit["stop_reason"], "time budget") << row.at(0);
+        EXPECT_EQ(fit["rounds"].size(), 1u) << row.at(0);
+        EXPECT_FALSE(fit["converged"].get<bool>()) << row.at(0);
+    }
+    const json record = json::parse(std::ifstream(path("fit/bench_run.json")));
+    EXPECT_EQ(record["settings"]["time_budget"], 1e-6);
+    const auto negative = run({"bench", "fit", path("small").string(), "--time-budget", "-1", "-o",
+                               path("fit2").string()});
+    EXPECT_NE(negative.exitCode, 0);
+    EXPECT_NE(negative.err.find("--time-budget"), std::string::npos) << negative.err;
+    EXPECT_FALSE(fs::exists(path("fit2")));
+}
+
 TEST_F(Bench, FitRefusesAnIncompleteDataset) {
     fs::create_directories(path("incomplete/sample_0000"));
     const auto r = run({"bench", "fit", path("incomplete").string(), "-o", path("x").string()});
