@@ -25,21 +25,48 @@ constexpr double kCrossPreference = 0.5;
 // round that kept the moments had (docs/design/fitter.md, "A round").
 constexpr double kHopelessPrecision = 0.2 * kCrossPreference;
 constexpr double kWalkingMove = 100;
+// A moment solve is not started from an anchor where it is hopeless (below kHopelessPrecision of
+// the anchor's precision) unless its Newton step there disagrees with the anchor: moves some
+// coordinate by more than this many of the moment solution's standard errors, beyond what the
+// two consistent estimates' difference can be by noise (docs/design/fitter.md, "A round").
+constexpr double kMomentDisagreement = 10;
+
+std::vector<Eigen::Index> freeIndices(const std::vector<bool>& held) {
+    std::vector<Eigen::Index> free;
+    for (std::size_t i = 0; i < held.size(); ++i)
+        if (!held[i]) free.push_back(Eigen::Index(i));
+    return free;
+}
 
 // Whether the cross products have a minimum here: their Gauss-Newton matrix is positive definite
 // over the free coordinates. Their sum itself can be below 0 at a well-defined minimum (a Cornell
 // box at 4 paths per pixel, in about one round of three), where pooled least squares would be
 // biased towards 0.
 bool positiveDefinite(const Eigen::MatrixXd& gram, const std::vector<bool>& held) {
-    std::vector<Eigen::Index> free;
-    for (std::size_t i = 0; i < held.size(); ++i)
-        if (!held[i]) free.push_back(Eigen::Index(i));
+    const std::vector<Eigen::Index> free = freeIndices(held);
     if (free.empty()) return true;
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram(free, free),
                                                                Eigen::EigenvaluesOnly);
     const Eigen::VectorXd& d = eigen.eigenvalues();
     return d.minCoeff() >
            d.maxCoeff() * double(free.size()) * std::numeric_limits<double>::epsilon();
+}
+
+// Whether the Newton step of the moment equations from where `analysis` was taken moves some free
+// coordinate by more than kMomentDisagreement of `std` (the moment solution's standard errors
+// there). `g`: the moments there.
+bool momentsDisagree(const Analysis& analysis, const Eigen::VectorXd& g,
+                     const std::vector<std::vector<double>>& std, const std::vector<bool>& held) {
+    const std::vector<Eigen::Index> free = freeIndices(held);
+    if (free.empty()) return false;
+    const Eigen::VectorXd step =
+        analysis.jacobian(free, free).colPivHouseholderQr().solve(-g(free));
+    const std::size_t width = std.front().size();
+    for (std::size_t f = 0; f < free.size(); ++f) {
+        const double sd = std[std::size_t(free[f]) / width][std::size_t(free[f]) % width];
+        if (!(std::abs(step[Eigen::Index(f)]) <= kMomentDisagreement * sd)) return true;
+    }
+    return false;
 }
 
 }  // namespace
@@ -103,6 +130,19 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     std::vector<Eigen::Matrix<double, P, 1>> instrumentPoint = params_.naturalBlocks();
     const bool anchorConverged = out.solverConverged;
     const double anchorPrecision = precision(params_, anchorStd);
+    // Nor do the passes start where the moment equations, instruments taken at the anchor, are
+    // hopeless there and agree with the anchor (kMomentDisagreement).
+    analysis = analyse();
+    const std::vector<std::vector<double>> startStd =
+        naturalStd(analysis.jacobian, analysis.scores);
+    if (precision(params_, startStd) < kHopelessPrecision * anchorPrecision) {
+        Eigen::VectorXd g;
+        instruments_.momentSums(objective_, at_.y.data(), g, nullptr);
+        if (!momentsDisagree(analysis, g, startStd, params_.heldFlags())) {
+            out.naturalStd = anchorStd;
+            return analysis;
+        }
+    }
     FitOptions notWalking;
     notWalking.tolerance = 0;
     notWalking.stdTolerance = kWalkingMove;

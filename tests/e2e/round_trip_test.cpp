@@ -178,11 +178,16 @@ TEST_P(SubPixelHighlight, KeepsItsExponentFree) {
     // the next pass goes on with the instruments moved (before that cap, rounds crawled for up to
     // 860 Ceres iterations to the same estimate; then at most 260). The later rounds' passes end
     // far less precise than the anchor and give up after two (kHopelessPrecision): at most 151
-    // iterations, the same estimates (212-260 before).
+    // iterations, the same estimates (212-260 before). Moment solves already hopeless at the
+    // anchor, and agreeing with it, are not started (kMomentDisagreement): the rounds after the
+    // first took 254 and 166 iterations in all for the two seeds, 395 and 368 before.
+    int later = 0;
     for (const auto& r : report["rounds"]) {
         EXPECT_FALSE(r["probe"].get<bool>()) << r.dump();
         EXPECT_LE(r["iterations"].get<int>(), r["round"].get<int>() == 0 ? 250 : 160) << r.dump();
+        if (r["round"].get<int>() > 0) later += r["iterations"].get<int>();
     }
+    EXPECT_LE(later, 300);
     for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(m["kd"][c].get<double>(), 0.6, 0.02 * 0.6);
         const double ks = m["ks"][c].get<double>(), ksStd = m["ks_std"][c].get<double>();
