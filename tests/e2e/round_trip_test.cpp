@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -263,6 +264,49 @@ TEST_F(RoundTrip, AreaLightSharpLobeIsFoundWithAdaptivePaths) {
     const double n = m["n"].get<double>(), nStd = m["n_std"].get<double>();
     EXPECT_LT(std::abs(n - 5000), 3 * nStd) << n << " +- " << nStd;
     EXPECT_LT(nStd, 0.3 * 5000) << "the lobe is resolved";
+}
+
+// Images from an independent renderer: Tungsten's renders of sphere_quad.xml
+// (tests/data/tungsten/README.md), its own sampler, noise and Phong code, fitted at the defaults
+// from kd, ks 0.3 and n far off. Seen on them: n 5128 +- 190 for 5000 and 3058 +- 63 for 3000
+// (seed 0), 4806 +- 310 and 3066 +- 44000 (seed 3, the test's: a sharper probe that did not come
+// back widens n's error), kd and ks within 0.5%, "not converged" after six rounds; no lobe: ks 0,
+// n unconstrained.
+TEST_F(RoundTrip, TungstenRendersOfTheQuadLitSphereAreRecovered) {
+    struct Case {
+        const char* image;
+        std::array<double, 3> kd, ks;
+        double n;
+        const char* startN;
+    };
+    const std::array<double, 3> grey3{0.3, 0.3, 0.3}, grey6{0.6, 0.6, 0.6};
+    for (const Case& c : {Case{"sphere_quad_n5000", grey3, grey6, 5000, "10"},
+                          Case{"sphere_quad_coloured_n3000",
+                               {0.3, 0.7 / 3, 0.5 / 3},
+                               {0.6, 1.4 / 3, 1.0 / 3},
+                               3000,
+                               "30"},
+                          Case{"sphere_quad_no_lobe", grey6, {0, 0, 0}, 0, "1"}}) {
+        const auto report = fit({kQuad + ":" + PHONGFIT_TUNGSTEN_DIR "/" + c.image + ".exr"},
+                                {"--kd", "0.3", "--ks", "0.3", "--n", c.startN}, c.image);
+        const auto& m = report["materials"]["sphere"];
+        for (int ch = 0; ch < 3; ++ch) {
+            const double kd = m["kd"][ch].get<double>(), ks = m["ks"][ch].get<double>();
+            EXPECT_NEAR(kd, c.kd[ch], std::max(0.02 * c.kd[ch], 0.003)) << c.image;
+            EXPECT_NEAR(ks, c.ks[ch], std::max(0.02 * c.ks[ch], 0.003)) << c.image;
+            EXPECT_LT(std::abs(kd - c.kd[ch]), 3 * m["kd_std"][ch].get<double>()) << c.image;
+            EXPECT_LE(std::abs(ks - c.ks[ch]), 3 * m["ks_std"][ch].get<double>()) << c.image;
+        }
+        const std::string unconstrained = m["unconstrained"].dump();
+        if (c.n == 0) {
+            EXPECT_NE(unconstrained.find("\"n\""), std::string::npos) << unconstrained;
+            continue;
+        }
+        EXPECT_EQ(unconstrained, "[]") << c.image;
+        const double n = m["n"].get<double>(), nStd = m["n_std"].get<double>();
+        EXPECT_NEAR(n, c.n, 0.05 * c.n) << c.image;
+        EXPECT_LT(std::abs(n - c.n), 3 * nStd) << c.image << ": " << n << " +- " << nStd;
+    }
 }
 
 // Issue 14: a coloured Phong sphere under the real Kerner light probe (tiled, mip-mapped, half
