@@ -309,6 +309,24 @@ TEST_F(RoundTrip, TungstenRendersOfTheQuadLitSphereAreRecovered) {
     }
 }
 
+// The Cornell box from Tungsten (tests/data/tungsten/README.md), indirect light to 64 bounces:
+// the walls' light reaches the sphere through recorded paths of many vertices, replayed. Seen:
+// kd within 0.3%, ks 0.25%, n 30.08 +- 0.12 (seed 0) and 30.05 +- 0.18 (seed 3), converged.
+TEST_F(RoundTrip, TungstenCornellBoxIsRecovered) {
+    const auto report = fit({kCornell + ":" + PHONGFIT_TUNGSTEN_DIR "/cornell_phong_n30.exr"},
+                            {"-D", "maxDepth=64", "-D", "width=128", "-D", "height=128", "--kd",
+                             "0.3", "--ks", "0.3", "--n", "3000"},
+                            "cornell");
+    const auto& m = report["materials"]["sphere"];
+    expectRecovered(m, 0.5, 0.2, 30, "tungsten cornell");
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_LT(std::abs(m["kd"][c].get<double>() - 0.5), 3 * m["kd_std"][c].get<double>());
+        EXPECT_LT(std::abs(m["ks"][c].get<double>() - 0.2), 3 * m["ks_std"][c].get<double>());
+    }
+    EXPECT_LT(std::abs(m["n"].get<double>() - 30), 3 * m["n_std"].get<double>());
+    EXPECT_TRUE(report["converged"].get<bool>());
+}
+
 // Issue 14: a coloured Phong sphere under the real Kerner light probe (tiled, mip-mapped, half
 // float), turned by 60 degrees: the recorded light samples come from the envmap's sampler and
 // replay like any other; one convex object needs direct light only.
