@@ -309,6 +309,18 @@ TEST_F(RoundTrip, TungstenRendersOfTheQuadLitSphereAreRecovered) {
     }
 }
 
+// A sharp lobe under a point light from Tungsten: n 5008 +- 48 (seed 0) and 5012 +- 530
+// (seed 3) for 5000 from 50, ks within 0.3%, converged.
+TEST_F(RoundTrip, TungstenPointLitSharpLobeIsRecovered) {
+    const auto report = fit({kPoint + ":" + PHONGFIT_TUNGSTEN_DIR "/sphere_point_n5000.exr"},
+                            {"--kd", "0.3", "--ks", "0.3", "--n", "50"}, "point");
+    const auto& m = report["materials"]["sphere"];
+    expectRecovered(m, 0.5, 0.3, 5000, "tungsten point");
+    for (int c = 0; c < 3; ++c)
+        EXPECT_LT(std::abs(m["ks"][c].get<double>() - 0.3), 3 * m["ks_std"][c].get<double>());
+    EXPECT_LT(std::abs(m["n"].get<double>() - 5000), 3 * m["n_std"].get<double>());
+}
+
 // The Cornell box from Tungsten (tests/data/tungsten/README.md), indirect light to 64 bounces:
 // the walls' light reaches the sphere through recorded paths of many vertices, replayed. Seen:
 // kd within 0.3%, ks 0.25%, n 30.08 +- 0.12 (seed 0) and 30.05 +- 0.18 (seed 3), converged.
