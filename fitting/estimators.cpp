@@ -6,6 +6,7 @@
 #include "convergence.h"
 #include "round_solver.h"
 #include "standard_errors.h"
+#include "uncertainty.h"
 
 namespace phongfit {
 
@@ -31,19 +32,14 @@ constexpr double kWalkingMove = 100;
 // two consistent estimates' difference can be by noise (docs/design/fitter.md, "A round").
 constexpr double kMomentDisagreement = 10;
 
-std::vector<Eigen::Index> freeIndices(const std::vector<bool>& held) {
-    std::vector<Eigen::Index> free;
-    for (std::size_t i = 0; i < held.size(); ++i)
-        if (!held[i]) free.push_back(Eigen::Index(i));
-    return free;
-}
-
 // Whether the cross products have a minimum here: their Gauss-Newton matrix is positive definite
 // over the free coordinates. Their sum itself can be below 0 at a well-defined minimum (a Cornell
 // box at 4 paths per pixel, in about one round of three), where pooled least squares would be
 // biased towards 0.
 bool positiveDefinite(const Eigen::MatrixXd& gram, const std::vector<bool>& held) {
-    const std::vector<Eigen::Index> free = freeIndices(held);
+    std::vector<Eigen::Index> free;
+    for (std::size_t i = 0; i < held.size(); ++i)
+        if (!held[i]) free.push_back(Eigen::Index(i));
     if (free.empty()) return true;
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram(free, free),
                                                                Eigen::EigenvaluesOnly);
@@ -54,18 +50,15 @@ bool positiveDefinite(const Eigen::MatrixXd& gram, const std::vector<bool>& held
 
 // Whether the Newton step of the moment equations from where `analysis` was taken moves some free
 // coordinate by more than kMomentDisagreement of `std` (the moment solution's standard errors
-// there). `g`: the moments there.
+// there, taken through the same inverse of their Jacobian). `g`: the moments there.
 bool momentsDisagree(const Analysis& analysis, const Eigen::VectorXd& g,
                      const std::vector<std::vector<double>>& std, const std::vector<bool>& held) {
-    const std::vector<Eigen::Index> free = freeIndices(held);
-    if (free.empty()) return false;
-    const Eigen::VectorXd step =
-        analysis.jacobian(free, free).colPivHouseholderQr().solve(-g(free));
+    const Eigen::VectorXd step = -(freeInverse(analysis.jacobian, held) * g);
     const std::size_t width = std.front().size();
-    for (std::size_t f = 0; f < free.size(); ++f) {
-        const double sd = std[std::size_t(free[f]) / width][std::size_t(free[f]) % width];
-        if (!(std::abs(step[Eigen::Index(f)]) <= kMomentDisagreement * sd)) return true;
-    }
+    for (std::size_t i = 0; i < held.size(); ++i)
+        if (!held[i] &&
+            !(std::abs(step[Eigen::Index(i)]) <= kMomentDisagreement * std[i / width][i % width]))
+            return true;
     return false;
 }
 
