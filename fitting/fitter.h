@@ -172,7 +172,9 @@ struct FitResult {
     // Why the rounds stopped: "converged", "precision" or "noise floor" (FitOptions::precision),
     // "unresolved" (the estimate stopped moving, but some parameter's standard error is as large
     // as itself: unresolvedParameters), "rounds" (FitOptions::maxRounds spent), "precision not
-    // met" (they were spent after the estimate had stopped moving), "sharper lobe" (they were
+    // met" (they were spent after the estimate had stopped moving), "path cap" (it stopped
+    // moving short of the precision, and the pixels that inform it hold the most paths a
+    // recording gives: path_growth.h), "sharper lobe" (they were
     // spent as a round recorded at a sharper lobe moved the estimate there, or the last round, a
     // probe, did not come back to the estimate reported: sharper_probe.h), "time budget"
     // (FitOptions::timeBudget), "memory" (FitOptions::memoryLimit) or "interrupted".

@@ -18,6 +18,7 @@
 #include "memory_info.h"
 #include "memory_plan.h"
 #include "parameter_state.h"
+#include "path_growth.h"
 #include "path_importance.h"
 #include "precision_target.h"
 #include "round_paths.h"
@@ -262,8 +263,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     };
     ParameterState<P> params(start, options.fitExposure);
     Estimate theta{start, 1.0};
-    std::vector<std::vector<float>> importance;  // per view, for the next round's recording
-    double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
+    std::vector<std::vector<float>> importance;          // per view, for the next round's recording
+    std::vector<std::vector<std::uint32_t>> firstPaths;  // per view and pixel, the first round's
+    double pathFactor = 1, growth = 1;  // FitOptions::precision's paths, and their change
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
     std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
     // The converged estimate the last round's probe did not come back to, widened to the probe:
@@ -298,6 +300,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const double recordSeconds = secondsSince(roundBegin);
         exact = sets.first == sets.second;
         checkRoundSets(sets, observations, int(start.size()));
+        if (round == 0 && !exact) firstPaths = pathsPerPixel(*sets.first);
         // A round recorded at the estimate, once the estimate has travelled from the start
         // (rounds 0 and 1, whose lobes can be the start's), also tries the broader side of its
         // confirmed lobes.
@@ -392,20 +395,35 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         probed.reset();
         growth = pathFactor / recordFactor;  // the next round's paths against this one's
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
+        bool importanceTaken = false;        // the next round's importance, already at theta
         if (result.converged) {
             const Settled next = settle<P>(result, out, params, options, recordFactor, !exact,
                                            rerecords && options.recordingFollowsEstimate && !exact,
                                            round + 1 == maxRounds);
             if (next.stop) break;
             sharper = next.sharper;
+            if (sharper.empty() && round + 1 < maxRounds) {
+                // More paths asked for. Where the pixels that inform the estimate are near their
+                // cap, more paths inform little: the estimate is as settled as paths make it, and
+                // a resolved one is probed as a converged one is.
+                importance = nextImportance<P>(observations, sets, params, theta, out, threads);
+                importanceTaken = true;
+                if (mostPathGain(importance, firstPaths, recordFactor) < kLeastPathGain) {
+                    result.stopReason = "path cap";
+                    if (rerecords && options.recordingFollowsEstimate && allResolved(out.materials))
+                        sharper = sharperProbe(out.materials);
+                    if (sharper.empty()) break;
+                    importanceTaken = false;
+                }
+            }
             if (!sharper.empty()) {
                 probed = result;
                 result.converged = false;
                 result.stopReason = "rounds";
                 growth = kProbePaths / recordFactor;
             } else {
-                growth = next.pathGrowth;
-                growth = withinTimeBudget(options, secondsSince(begin), r.timeSeconds, growth);
+                growth =
+                    withinTimeBudget(options, secondsSince(begin), r.timeSeconds, next.pathGrowth);
                 // Never fewer paths than before a probe that did not come back.
                 pathFactor = std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
@@ -421,7 +439,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // The probe round records, and starts its solve, at the sharper lobe, and spends its
         // extra paths where that lobe's parameters are informed.
         if (!sharper.empty()) theta.materials = sharper;
-        if (!exact && round + 1 < maxRounds)
+        if (!exact && round + 1 < maxRounds && !importanceTaken)
             importance = nextImportance<P>(observations, sets, params, theta, out, threads);
     }
     if (!exact) {

@@ -17,6 +17,7 @@
 #include "fit_report.h"
 #include "instruments.h"
 #include "memory_plan.h"
+#include "path_growth.h"
 #include "path_importance.h"
 #include "scene_parser.h"
 #include "scene_writer.h"

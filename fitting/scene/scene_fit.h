@@ -78,8 +78,6 @@ struct SceneRecording {
     int adaptiveSpp = 0;
 };
 
-inline constexpr int kMostExtraPaths = 1024;
-
 // Reads and checks every input. Throws Error naming the file and what is allowed.
 SceneFitProblem loadSceneFit(const SceneFitInputs& inputs);
 

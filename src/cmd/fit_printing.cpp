@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "comparison_image.h"
+#include "path_growth.h"
 
 namespace phongfit {
 
@@ -22,6 +23,12 @@ std::string notConvergedBecause(const FitResult& result) {
             "the estimate stopped moving, but not every parameter is as precise as --precision "
             "asks after {} rounds (--rounds)",
             result.rounds.size());
+    if (result.stopReason == "path cap")
+        return fmt::format(
+            "the estimate stopped moving, but not every parameter is as precise as --precision "
+            "asks, and the pixels that inform it already hold the most paths a recording gives a "
+            "pixel ({} more than the first round's): more paths would not halve the variance",
+            kMostExtraPaths);
     if (result.stopReason == "unresolved") {
         std::vector<std::string> names;
         for (const MaterialFit& m : result.materials)
