@@ -271,6 +271,14 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // The converged estimate the last round's probe did not come back to, widened to the probe:
     // what the fit reports if it ends before another round.
     std::optional<FitResult> unvouched;
+    // The last probe round that did not come back, and the converged estimate it probed: the
+    // sharper lobe it stayed at fitted the images, and later rounds rule it out only by coming
+    // back to that estimate as a probe would (sharper_probe.h, probeReturned).
+    struct Unreturned {
+        std::vector<MaterialFit> converged, probe;
+    };
+    std::optional<Unreturned> unreturned;
+    bool vouched = false;  // the fit ends at a converged estimate its probe came back to
     if (rerecords)
         requireMemory(leastFirstRoundBytes(observations), fitMemoryAvailable(options.memoryLimit),
                       fmt::format("the fit's first round ({} bytes of fit state and two "
@@ -370,13 +378,17 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         if (probeBack) {
             probed->rounds = std::move(result.rounds);
             result = std::move(*probed);
+            vouched = true;
             break;
         }
         unvouched.reset();
         if (probed) {
+            unreturned = Unreturned{probed->materials, out.materials};
             unvouched = std::move(*probed);
             unvouched->converged = false;
             widenToProbe(unvouched->materials, out.materials);
+        } else if (unreturned && probeReturned(unreturned->converged, out.materials)) {
+            unreturned.reset();
         }
         if (probeLeft) {
             unvouched->rounds = std::move(result.rounds);
@@ -443,6 +455,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             importance = nextImportance<P>(observations, sets, params, theta, out, threads);
     }
     if (!exact) {
+        // A probe that did not come back, with no later one that did: the final estimate's n
+        // reaches the lobe it stayed at.
+        if (unreturned && !vouched) widenToProbe(result.materials, unreturned->probe);
         widenToRoundScatter(result);
         // Stopped while the estimate still moved (a probe left unvouched has its own widening).
         const std::string& why = result.stopReason;

@@ -819,6 +819,38 @@ TEST(Fitter, ProbeThatDoesNotComeBackInTheLastRoundLeavesTheConvergedEstimateUnv
     EXPECT_EQ(cut.materials[0].n, converged.n);
     EXPECT_GE(cut.materials[0].nStd, (kProbeFactor - 1) * converged.n);
 
+    // Rounds after it rule the probe's lobe out only by coming back to the converged estimate as
+    // a probe would. With two more rounds whose paths see the lobe as before, the fit comes back
+    // to the truth and settles there: its own standard error stands, not the probe's reach.
+    FitOptions more = options;
+    more.maxRounds = 5;
+    const FitResult back = fitMaterials({obs}, record, {start}, more);
+    expectFinite(back);
+    ASSERT_EQ(back.rounds.size(), 5u);
+    EXPECT_TRUE(back.rounds[2].probe);
+    EXPECT_FALSE(back.rounds[4].probe);
+    EXPECT_FALSE(back.converged);
+    EXPECT_NEAR(back.materials[0].n, kTruth.n, 0.01 * kTruth.n);
+    EXPECT_LT(back.materials[0].nStd, back.rounds[2].materials[0].n - back.materials[0].n);
+    // Rounds whose paths see the lobe 2.5x sharper after the probe settle there, neither back
+    // nor at the probe's lobe: the result's n reaches the lobe the probe stayed at.
+    const PathRecorder elsewhere = [&](int view, const std::vector<PhongMaterial>& theta0,
+                                       int recording, const std::vector<float>& importance,
+                                       double pathFactor) {
+        PathSet ps = record(view, theta0, recording, importance, pathFactor);
+        if (recording >= 6)
+            for (PathVertex& v : ps.vertices) v.logCos /= 2.5f;
+        return ps;
+    };
+    const FitResult left = fitMaterials({obs}, elsewhere, {start}, more);
+    expectFinite(left);
+    ASSERT_EQ(left.rounds.size(), 5u);
+    EXPECT_TRUE(left.rounds[2].probe);
+    EXPECT_FALSE(left.converged);
+    const MaterialFit& stayed = left.rounds[2].materials[0];
+    EXPECT_NEAR(left.materials[0].n, 2.5 * kTruth.n, 0.01 * 2.5 * kTruth.n);
+    EXPECT_GE(left.materials[0].nStd, stayed.n - left.materials[0].n + 3 * stayed.nStd);
+
     options.recordingFollowsEstimate = false;
     const FitResult unprobed = fitMaterials({obs}, record, {start}, options);
     ASSERT_EQ(unprobed.rounds.size(), 2u);
