@@ -196,7 +196,9 @@ struct FitResult {
 // paths in proportion to it (fixed before tracing) gets more precision for its time.
 // `pathFactor` (1 in the first round) is how many times the first round's paths the fitter asks
 // for in the pixels that see a fitted material (FitOptions::precision), the extra ones spent by
-// `importance` too; below 1 (the sharper probe's round, sharper_probe.h) in every pixel.
+// `importance` too; below 1 (the sharper probe's round, sharper_probe.h) in every pixel. The
+// fitter plans as if the extra paths were shared by allocatePaths within kMostExtraPaths a pixel
+// (path_growth.h), and stops asking for more where that cap leaves them little to give.
 using PathRecorder =
     std::function<PathSet(int view, const std::vector<PhongMaterial>& theta0, int recording,
                           const std::vector<float>& importance, double pathFactor)>;

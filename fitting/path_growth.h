@@ -29,7 +29,8 @@ double weighedPathVariance(const std::vector<std::vector<float>>& importance,
 
 // Per view, the paths per pixel of a recording at `pathFactor` (PathRecorder's): the first round's
 // `base`, and in the pixels with importance (pathFactor - 1) times their mean base more on average,
-// shared by allocatePaths within kMostExtraPaths.
+// shared by allocatePaths within kMostExtraPaths (a recording's --adaptive-spp paths, the same at
+// every factor from 1 on, are left out).
 std::vector<std::vector<std::uint32_t>> plannedPaths(
     const std::vector<std::vector<float>>& importance,
     const std::vector<std::vector<std::uint32_t>>& base, double pathFactor);
