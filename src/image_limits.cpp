@@ -178,6 +178,27 @@ void requireJpegWithinLimits(const std::string& path, const char* what, std::int
     invalidHeader(path, what, "a JPEG has a frame header before its image data");
 }
 
+// Bytes of a TIFF integer type's value (BYTE, SBYTE, SHORT, SSHORT, LONG, SLONG, LONG8, SLONG8);
+// 0 for the others.
+int tiffIntegerBytes(std::int64_t type) {
+    switch (type) {
+        case 1:
+        case 6:
+            return 1;
+        case 3:
+        case 8:
+            return 2;
+        case 4:
+        case 9:
+            return 4;
+        case 16:
+        case 17:
+            return 8;
+        default:
+            return 0;
+    }
+}
+
 void requireTiffWithinLimits(const std::string& path, const char* what, std::int64_t size) {
     HeaderBytes file(path);
     const bool bigEndian = file.uint(0, 1, true) == 'M';
@@ -198,7 +219,10 @@ void requireTiffWithinLimits(const std::string& path, const char* what, std::int
         const std::int64_t tag = file.uint(entry, 2, bigEndian);
         const std::int64_t type = file.uint(entry + 2, 2, bigEndian);
         const std::int64_t count = file.uint(entry + 4, offsetBytes, bigEndian);
-        const int valueBytes = type == 3 ? 2 : type == 4 ? 4 : type == 16 ? 8 : 0;  // short, long
+        // Every integer type, signed too: libtiff reads an integer tag of any of them (png_fuzz
+        // found RowsPerStrip as a signed short), and a signed value counts as unsigned here, at
+        // its largest.
+        const int valueBytes = tiffIntegerBytes(type);
         if (valueBytes == 0 || count < 1) continue;
         std::int64_t at = entry + 4 + offsetBytes;
         if (count > offsetBytes / valueBytes) at = file.uint(at, offsetBytes, bigEndian);
