@@ -19,26 +19,25 @@ inline constexpr int kMostExtraPaths = 1024;
 // paths are not worth a round.
 inline constexpr double kLeastPathGain = 2;
 
-// A recording's paths per pixel, per view (PathSet::spp where pixelPaths is empty).
-std::vector<std::vector<std::uint32_t>> pathsPerPixel(const std::vector<PathSet>& sets);
+// A recording's paths per pixel: `spp` in every pixel, or `perPixel` where they differ (a copy of
+// PathSet::pixelPaths, empty for a uniform recording).
+struct PixelPaths {
+    std::uint32_t spp = 0;
+    std::vector<std::uint32_t> perPixel;
+    std::uint32_t at(std::size_t p) const { return perPixel.empty() ? spp : perPixel[p]; }
+};
+
+// Per view, the paths per pixel of `sets`.
+std::vector<PixelPaths> pathsPerPixel(const std::vector<PathSet>& sets);
 
 // The recordings' variance of the estimate as pathImportance weighs it, sum_p importance_p^2 /
-// paths_p over every view's pixels that have importance (and paths).
-double weighedPathVariance(const std::vector<std::vector<float>>& importance,
-                           const std::vector<std::vector<std::uint32_t>>& paths);
-
-// Per view, the paths per pixel of a recording at `pathFactor` (PathRecorder's): the first round's
-// `base`, and in the pixels with importance (pathFactor - 1) times their mean base more on average,
-// shared by allocatePaths within kMostExtraPaths (a recording's --adaptive-spp paths, the same at
-// every factor from 1 on, are left out).
-std::vector<std::vector<std::uint32_t>> plannedPaths(
-    const std::vector<std::vector<float>>& importance,
-    const std::vector<std::vector<std::uint32_t>>& base, double pathFactor);
-
-// How many times smaller the weighed variance is with every pixel that has importance at the cap
-// than with a recording at `pathFactor` shared by the same importance: the most more paths can
-// give. Infinite where no pixel has importance.
+// paths_p over the pixels with importance (and paths), for a recording at `pathFactor`
+// (PathRecorder's) shared by `importance`: the first round's paths `base`, and in the pixels with
+// importance (pathFactor - 1) times their mean base more on average, shared by allocatePaths
+// within kMostExtraPaths (a recording's --adaptive-spp paths, the same at every factor from 1 on,
+// are left out). Returns how many times smaller it is with every such pixel at the cap: the most
+// more paths can give; infinite where no pixel has importance.
 double mostPathGain(const std::vector<std::vector<float>>& importance,
-                    const std::vector<std::vector<std::uint32_t>>& base, double pathFactor);
+                    const std::vector<PixelPaths>& base, double pathFactor);
 
 }  // namespace phongfit

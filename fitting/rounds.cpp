@@ -263,9 +263,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     };
     ParameterState<P> params(start, options.fitExposure);
     Estimate theta{start, 1.0};
-    std::vector<std::vector<float>> importance;          // per view, for the next round's recording
-    std::vector<std::vector<std::uint32_t>> firstPaths;  // per view and pixel, the first round's
-    double pathFactor = 1, growth = 1;  // FitOptions::precision's paths, and their change
+    std::vector<std::vector<float>> importance;  // per view, for the next round's recording
+    std::vector<PixelPaths> firstPaths;          // per view, the first round's paths per pixel
+    double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
     std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
     // The converged estimate the last round's probe did not come back to, widened to the probe:
