@@ -1,16 +1,41 @@
 #include "round_scatter.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
+#include <vector>
 
 namespace phongfit {
 
 namespace {
 
-// The mean of the middle of three successive differences' sizes of four independent estimates,
-// over their standard deviation (simulated, 2e7 draws: 1.0875 +- 0.00015).
-constexpr double kMiddleDifferencePerSigma = 1.0875;
+// A full window's first move counts as travel above this many times the rms of its other moves.
+// Four independent estimates' first move is that far out 1.2% of the time (simulated, 2e6 draws).
+constexpr double kTravelRatio = 8;
+
+// sqrt(mean squared successive difference / 2) of `values`, made unbiased for their few degrees
+// of freedom. A full window whose first move is travel (kTravelRatio) leaves its first value out.
+double scatterOf(std::vector<double> values) {
+    if (values.size() == std::size_t(kScatterRounds)) {
+        const double first = values[1] - values[0];
+        double others = 0;
+        for (std::size_t k = 2; k < values.size(); ++k)
+            others += std::pow(values[k] - values[k - 1], 2) / double(values.size() - 2);
+        // Later moves of exactly 0 (solves that kept their start) say nothing of the noise.
+        if (others > 0 && first * first > kTravelRatio * kTravelRatio * others)
+            values.erase(values.begin());
+    }
+    double squares = 0;
+    for (std::size_t k = 1; k < values.size(); ++k)
+        squares += std::pow(values[k] - values[k - 1], 2);
+    // The square root of a variance estimated from a few rounds is biased low (Jensen): from two
+    // estimates it is sqrt(2 / pi) = 0.80 of the spread on average. Divided by that mean, c4, for
+    // the degrees of freedom of the mean squared successive difference of k estimates,
+    // 2 (k - 1)^2 / (3 k - 4) (von Neumann).
+    const double k = double(values.size()), dof = 2 * (k - 1) * (k - 1) / (3 * k - 4);
+    const double c4 =
+        std::sqrt(2 / dof) * std::exp(std::lgamma((dof + 1) / 2) - std::lgamma(dof / 2));
+    return std::sqrt(squares / (2 * (k - 1))) / c4;
+}
 
 }  // namespace
 
@@ -24,49 +49,18 @@ std::vector<MaterialScatter> roundScatter(const std::vector<FitRound>& rounds,
     if (estimates.size() > std::size_t(kScatterRounds))
         estimates.erase(estimates.begin(), estimates.end() - kScatterRounds);
     if (estimates.size() < 2) return {};
-    const std::size_t materials = estimates.back()->size();
-    std::vector<MaterialScatter> out(materials);
-    // A full window's scatter is its middle successive difference: a round that travelled (from a
-    // start's state the recordings could not tell apart, to the estimate) is one difference of
-    // three, and would otherwise set it (docs/design/fitter.md, "Standard errors no smaller than
-    // the rounds' scatter").
-    static_assert(kScatterRounds == 4, "kMiddleDifferencePerSigma is for four estimates");
-    if (estimates.size() == std::size_t(kScatterRounds)) {
-        const auto middle = [&](auto value) {
-            std::array<double, kScatterRounds - 1> d;
-            for (std::size_t k = 1; k < estimates.size(); ++k)
-                d[k - 1] = std::abs(value(*estimates[k]) - value(*estimates[k - 1]));
-            std::sort(d.begin(), d.end());
-            return d[1] / kMiddleDifferencePerSigma;
-        };
-        for (std::size_t s = 0; s < materials; ++s) {
-            for (int c = 0; c < 3; ++c) {
-                out[s].kd[c] = middle([&](const auto& e) { return e[s].kd[c]; });
-                out[s].ks[c] = middle([&](const auto& e) { return e[s].ks[c]; });
-            }
-            out[s].logN = middle([&](const auto& e) { return std::log(e[s].n); });
+    std::vector<MaterialScatter> out(estimates.back()->size());
+    const auto scatter = [&](auto value) {
+        std::vector<double> values;
+        for (const std::vector<MaterialFit>* e : estimates) values.push_back(value(*e));
+        return scatterOf(std::move(values));
+    };
+    for (std::size_t s = 0; s < out.size(); ++s) {
+        for (int c = 0; c < 3; ++c) {
+            out[s].kd[c] = scatter([&](const auto& e) { return e[s].kd[c]; });
+            out[s].ks[c] = scatter([&](const auto& e) { return e[s].ks[c]; });
         }
-        return out;
-    }
-    const double pairs = 2.0 * double(estimates.size() - 1);
-    for (std::size_t k = 1; k < estimates.size(); ++k)
-        for (std::size_t s = 0; s < materials; ++s) {
-            const MaterialFit &a = (*estimates[k - 1])[s], &b = (*estimates[k])[s];
-            out[s].kd += (b.kd - a.kd).square() / pairs;
-            out[s].ks += (b.ks - a.ks).square() / pairs;
-            out[s].logN += std::pow(std::log(b.n) - std::log(a.n), 2) / pairs;
-        }
-    // The square root of a variance estimated from a few rounds is biased low (Jensen): from two
-    // estimates it is sqrt(2 / pi) = 0.80 of the spread on average. Divided by that mean, c4, for
-    // the degrees of freedom of the mean squared successive difference of k estimates,
-    // 2 (k - 1)^2 / (3 k - 4) (von Neumann).
-    const double k = double(estimates.size()), dof = 2 * (k - 1) * (k - 1) / (3 * k - 4);
-    const double c4 =
-        std::sqrt(2 / dof) * std::exp(std::lgamma((dof + 1) / 2) - std::lgamma(dof / 2));
-    for (MaterialScatter& m : out) {
-        m.kd = m.kd.sqrt() / c4;
-        m.ks = m.ks.sqrt() / c4;
-        m.logN = std::sqrt(m.logN) / c4;
+        out[s].logN = scatter([&](const auto& e) { return std::log(e[s].n); });
     }
     return out;
 }

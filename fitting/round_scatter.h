@@ -11,12 +11,12 @@ namespace phongfit {
 inline constexpr int kScatterRounds = 4;
 
 // Per material: the scatter of kd and ks per channel and of log n over the last kScatterRounds
-// estimates of rounds from the third on (rounds 0 and 1 are still travelling from the start):
-// for a full window the middle of its successive differences' sizes (a round that still
-// travelled is one of three), else sqrt(mean of squared successive differences / 2), each made
-// unbiased for independent estimates; the estimates are `rounds`' but the sharper probes' (fewer
-// paths, from a start away from the estimate) and then, if given, `latest`'s. Empty when there
-// are fewer than two.
+// estimates of rounds from the third on (rounds 0 and 1 are still travelling from the start),
+// sqrt(mean of squared successive differences / 2) made unbiased for their few degrees of
+// freedom (c4), a full window's first estimate left out where its move is travel (8 times the
+// rms of the others' moves or more: a round still at the start's state); the estimates are
+// `rounds`' but the sharper probes' (fewer paths, from a start away from the estimate) and then,
+// if given, `latest`'s. Empty when there are fewer than two.
 struct MaterialScatter {
     Color3 kd = Color3::Zero(), ks = Color3::Zero();
     double logN = 0;

@@ -26,9 +26,9 @@ FitRound roundAt(double kd, double ks, double n) {
 }
 
 // Six rounds: 0 and 1 travel (ignored); 2 to 5 alternate ks 0.25, 0.254 and n 1000, 1100, with
-// kd steady. A full window (kScatterRounds estimates): the middle of the successive differences'
-// sizes, 0.004 and log(1.1), over 1.0875. The sandwich's smaller errors are raised, a larger one
-// kept, a held parameter (0) left alone.
+// kd steady. Successive differences 0.004 and log(1.1) three times: scatter 0.004 / sqrt(2) and
+// n log(1.1) / sqrt(2), over c4 of 4 estimates' 2 * 3^2 / 8 degrees of freedom. The sandwich's
+// smaller errors are raised, a larger one kept, a held parameter (0) left alone.
 TEST(RoundScatter, RaisesStandardErrorsToTheLastRoundsScatter) {
     FitResult result;
     result.rounds = {roundAt(0.1, 0.9, 5),     roundAt(0.5, 0.3, 800),
@@ -43,9 +43,11 @@ TEST(RoundScatter, RaisesStandardErrorsToTheLastRoundsScatter) {
     const MaterialFit& m = result.materials[0];
     EXPECT_EQ(m.kdStd[0], 1e-4);
     EXPECT_EQ(m.kdStd[2], 0);
-    EXPECT_NEAR(m.ksStd[0], 0.004 / 1.0875, 1e-12);
+    const double unbiased = 1 / c4(2.25);
+    EXPECT_NEAR(unbiased, 1.1141, 1e-4);
+    EXPECT_NEAR(m.ksStd[0], 0.004 / std::sqrt(2.0) * unbiased, 1e-12);
     EXPECT_EQ(m.ksStd[1], 0.01);
-    EXPECT_NEAR(m.nStd, 1100 * std::log(1.1) / 1.0875, 1e-9);
+    EXPECT_NEAR(m.nStd, 1100 * std::log(1.1) / std::sqrt(2.0) * unbiased, 1e-9);
 }
 
 // Fewer estimates than a full window: sqrt(mean squared successive difference / 2), over c4 of
@@ -62,23 +64,42 @@ TEST(RoundScatter, FewerEstimatesTakeTheMeanSquaredDifference) {
 }
 
 // Round 2 still at the state the first rounds could not tell from the estimate (session 35's
-// 0056: n 254, then 2562, 2927, 2923 for 3000): its move is one difference of three and does not
-// set the scatter. As the mean squared difference it would have: n +- 7234.
-TEST(RoundScatter, ARoundThatTravelledDoesNotSetAFullWindowsScatter) {
+// 0056: n 254, then 2562, 2927, 2923 for 3000): its move, 17 times the rms of the others, is
+// travel, and the scatter is the last three estimates'. With it the scatter said n +- 7234. A
+// move 8 times the others' or less stays, and so does one where the others are exactly 0.
+TEST(RoundScatter, AFullWindowLeavesOutAFirstMoveThatTravelled) {
     FitResult result;
     result.rounds = {roundAt(0.42, 0.54, 236), roundAt(0.45, 0.49, 247), roundAt(0.46, 0.49, 254),
                      roundAt(0.45, 0.5, 2562), roundAt(0.45, 0.5, 2927), roundAt(0.45, 0.5, 2923)};
     result.materials = {result.rounds.back().materials[0]};
     result.materials[0].nStd = 40.9;
     widenToRoundScatter(result);
-    EXPECT_NEAR(result.materials[0].nStd, 2923 * std::log(2927.0 / 2562.0) / 1.0875, 1e-9);
+    const double last3 =
+        std::sqrt(
+            (std::pow(std::log(2927.0 / 2562.0), 2) + std::pow(std::log(2923.0 / 2927.0), 2)) / 4) /
+        c4(1.6);
+    EXPECT_NEAR(result.materials[0].nStd, 2923 * last3, 1e-9);
     EXPECT_LT(result.materials[0].nStd, 0.15 * 2923);
+
+    const auto logNScatter = [](std::vector<double> n) {
+        std::vector<FitRound> rounds = {roundAt(0.5, 0.5, 1), roundAt(0.5, 0.5, 1)};
+        for (double x : n) rounds.push_back(roundAt(0.5, 0.5, x));
+        return roundScatter(rounds)[0].logN;
+    };
+    const double e = std::exp(1.0);
+    // Moves 7.9, 1, -1 (rms 1): all four count.
+    EXPECT_NEAR(logNScatter({1, std::pow(e, 7.9), std::pow(e, 8.9), std::pow(e, 7.9)}),
+                std::sqrt((7.9 * 7.9 + 2) / 6) / c4(2.25), 1e-9);
+    EXPECT_NEAR(logNScatter({1, std::pow(e, 8.1), std::pow(e, 9.1), std::pow(e, 8.1)}),
+                std::sqrt(2.0 / 4) / c4(1.6), 1e-9);
+    EXPECT_NEAR(logNScatter({1, 1000, 1000, 1000}), std::log(1000.0) / std::sqrt(6) / c4(2.25),
+                1e-9);
 }
 
-// Both forms are near unbiased for the standard deviation of independent estimates: the mean
-// scatter of log n over 200000 draws of normal estimates (sigma 0.1; its standard error 0.15%).
-// The full window's middle difference (1.0875 simulated independently) within 0.5%; three
-// estimates' c4, whose degrees of freedom are von Neumann's approximation, is 1% high (wide).
+// Near unbiased for the standard deviation of independent estimates: the mean scatter of log n
+// over 200000 draws of normal estimates (sigma 0.1; its standard error 0.1%). A full window
+// (first moves left out as travel 1.2% of the time) within 0.5%; three estimates' c4, whose
+// degrees of freedom are von Neumann's approximation, is 1% high (wide).
 TEST(RoundScatter, IsUnbiasedForIndependentEstimates) {
     std::mt19937_64 rng(7);
     std::normal_distribution<double> normal(0, 0.1);
