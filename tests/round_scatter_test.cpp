@@ -64,7 +64,7 @@ TEST(RoundScatter, FewerEstimatesTakeTheMeanSquaredDifference) {
 }
 
 // Round 2 still at the state the first rounds could not tell from the estimate (session 35's
-// 0056: n 254, then 2562, 2927, 2923 for 3000): its move, 17 times the rms of the others, is
+// 0056: n 254, then 2562, 2927, 2923 for 3000): its move, 24 times the rms of the others, is
 // travel, and the scatter is the last three estimates'. With it the scatter said n +- 7234. A
 // move 8 times the others' or less stays, and so does one where the others are exactly 0.
 TEST(RoundScatter, AFullWindowLeavesOutAFirstMoveThatTravelled) {
