@@ -44,7 +44,7 @@ PixelSpread spread(const PathSet& a, const PathSet& b, std::uint32_t pixel,
                 sensitivity += term * term;
             }
     }
-    const double paths = a.pixelPaths.empty() ? a.spp : a.pixelPaths[pixel];
+    const double paths = a.pathsAt(pixel);
     s.sensitivity = float(std::sqrt(sensitivity));
     s.pathVariance = float(0.5 * paths * (ia - ib).matrix().squaredNorm());
     return s;

@@ -84,7 +84,7 @@ inline Color3 replayPathVariance(const PathSet& paths, std::size_t pixel,
         sum += x;
         squares += x * x;
     }
-    const double n = paths.pixelPaths.empty() ? paths.spp : paths.pixelPaths[pixel];
+    const double n = paths.pathsAt(pixel);
     return (n * squares - sum * sum).max(0.0);
 }
 

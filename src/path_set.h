@@ -7,6 +7,7 @@
 // materials. A vertex keeps only what f needs: its material slot and log(cos alpha).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -38,6 +39,11 @@ struct PathSet {
     // Paths each pixel's estimate is the mean of, where they differ from `spp` (a recording that
     // spends more paths where they inform the fit); empty: `spp` everywhere.
     std::vector<std::uint32_t> pixelPaths;
+
+    // The paths pixel p's estimate is the mean of.
+    std::uint32_t pathsAt(std::size_t p) const {
+        return pixelPaths.empty() ? std::uint32_t(spp) : pixelPaths[p];
+    }
 };
 
 }  // namespace phongfit
