@@ -420,13 +420,15 @@ TEST(PhongBrdfExtreme, ExpOrZeroIsExpBitForBit) {
     EXPECT_EQ(expOrZero(0.0), 1.0);
 }
 
-// phongEvalLogCos skips the lobe's arithmetic where the lobe is exactly 0: f is the full formula's
-// to the last bit on both sides of exp's cut, for floats, doubles and Jets (the fitter's: kd, ks
-// and log n as parameters), at kd = 0 and ks = 0 too.
+// phongEvalLogCos is the full formula with the lobe cut at kLobeTail: to the last bit above the
+// cut (the lobe's arithmetic included) and the diffuse term alone below it, for floats, doubles
+// and Jets (the fitter's: kd, ks and log n as parameters), at kd = 0 and ks = 0 too.
 template <typename T, typename D>
-void expectLobeSkipIsTheFullFormula(const PhongParams<T>& p, D logCos) {
+void expectLobeCutAtItsTail(const PhongParams<T>& p, D logCos) {
     using std::exp;
-    const T power = logCos == -std::numeric_limits<D>::infinity() ? T(0) : exp(p.n * T(logCos));
+    const T x = p.n * T(logCos);
+    const bool cut = logCos == -std::numeric_limits<D>::infinity() || x < T(kLobeTail);
+    const T power = cut ? T(0) : exp(x);
     const Color<T> full = p.kd * T(kInvPi) + p.ks * ((p.n + T(2)) * T(0.5 * kInvPi) * power);
     const Color<T> f = phongEvalLogCos(p, logCos);
     for (int c = 0; c < 3; ++c) {
@@ -434,6 +436,9 @@ void expectLobeSkipIsTheFullFormula(const PhongParams<T>& p, D logCos) {
             EXPECT_EQ(std::bit_cast<std::uint64_t>(double(f[c])),
                       std::bit_cast<std::uint64_t>(double(full[c])))
                 << logCos;
+            if (cut) {
+                EXPECT_EQ(f[c], p.kd[c] * T(kInvPi)) << logCos;
+            }
         } else {
             EXPECT_EQ(std::bit_cast<std::uint64_t>(f[c].a), std::bit_cast<std::uint64_t>(full[c].a))
                 << logCos;
@@ -445,7 +450,7 @@ void expectLobeSkipIsTheFullFormula(const PhongParams<T>& p, D logCos) {
     }
 }
 
-TEST(PhongBrdfExtreme, LobeSkipIsTheFullFormulaBitForBit) {
+TEST(PhongBrdfExtreme, LobeIsTheFullFormulaCutAtItsTail) {
     const double inf = std::numeric_limits<double>::infinity();
     for (const auto& [kd, ks] : {std::pair{0.3, 0.5}, {0.0, 0.5}, {0.45, 0.0}, {0.0, 0.0}})
         for (const double n : {30.0, 3e4, 1e6}) {
@@ -458,16 +463,27 @@ TEST(PhongBrdfExtreme, LobeSkipIsTheFullFormulaBitForBit) {
             f.ks = d.ks.cast<float>();
             f.n = float(n);
             const PhongParams<Jet> j = jetParams(d.kd, d.ks, std::log(n));
-            // n log(cos alpha) from -800 to -90: across both cuts (-746 double, -104 float).
-            for (double x = -800; x <= -90; x += 0.37) {
-                expectLobeSkipIsTheFullFormula(d, x / n);
-                expectLobeSkipIsTheFullFormula(j, x / n);
-                expectLobeSkipIsTheFullFormula(f, float(x / n));
+            // n log(cos alpha) from -800 to 0: across the tail's cut and exp's own (-746).
+            for (double x = -800; x <= 0; x += 0.37) {
+                expectLobeCutAtItsTail(d, x / n);
+                expectLobeCutAtItsTail(j, x / n);
+                expectLobeCutAtItsTail(f, float(x / n));
             }
-            expectLobeSkipIsTheFullFormula(d, -inf);
-            expectLobeSkipIsTheFullFormula(j, -inf);
-            expectLobeSkipIsTheFullFormula(f, -std::numeric_limits<float>::infinity());
+            expectLobeCutAtItsTail(d, -inf);
+            expectLobeCutAtItsTail(j, -inf);
+            expectLobeCutAtItsTail(f, -std::numeric_limits<float>::infinity());
         }
+}
+
+// What the cut leaves out of a term is below a twentieth of half an ulp of the lobe's peak (1 at
+// alpha = 0), at every exponent; the cut falls where n log(cos alpha) crosses kLobeTail.
+TEST(PhongBrdfExtreme, LobeTailCutIsBelowDoublePrecision) {
+    EXPECT_LT(std::exp(kLobeTail), 0.5 * std::numeric_limits<double>::epsilon() / 20);
+    for (const double n : {1.0, 30.0, 3e4, 1e6}) {
+        const double above = (kLobeTail + 1e-9) / n, below = (kLobeTail - 1e-9) / n;
+        EXPECT_EQ(phongPower(n, above), std::exp(n * above)) << n;
+        EXPECT_EQ(phongPower(n, below), 0.0) << n;
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
