@@ -22,8 +22,9 @@ constexpr int kMaxPasses = 8;
 constexpr double kCrossPreference = 0.5;
 // The passes give up, keeping the anchor, once two in a row end this far below the precision
 // that keeps the moments, each having moved by less than kWalkingMove of its standard errors (a
-// pass that moves further is walking from a poor anchor to a root): on the recovery matrix no
-// round that kept the moments had (docs/design/fitter.md, "A round").
+// pass that moves further is walking from a poor anchor to a root, unless its standard errors are
+// not finite): on the recovery matrix no round that kept the moments had (docs/design/fitter.md,
+// "A round").
 constexpr double kHopelessPrecision = 0.2 * kCrossPreference;
 constexpr double kWalkingMove = 100;
 // A moment solve is not started from an anchor where it is hopeless (below kHopelessPrecision of
@@ -145,9 +146,11 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         analysis = analyse();
         out.naturalStd = naturalStd(analysis.jacobian, analysis.scores);
         const double momentPrecision = precision(params_, out.naturalStd);
-        const bool hopelessPass = momentPrecision < kHopelessPrecision * anchorPrecision &&
-                                  withinTolerance<P>(instrumentPoint, params_.naturalBlocks(),
-                                                     out.naturalStd, notWalking);
+        // A pass with no finite standard errors (precision 0) has nothing to walk by.
+        const bool hopelessPass =
+            momentPrecision < kHopelessPrecision * anchorPrecision &&
+            (momentPrecision == 0 || withinTolerance<P>(instrumentPoint, params_.naturalBlocks(),
+                                                        out.naturalStd, notWalking));
         hopeless = hopelessPass ? hopeless + 1 : 0;
         const bool settled = withinTolerance<P>(instrumentPoint, params_.naturalBlocks(),
                                                 noStd(params_.blockCount(), P), options_);
