@@ -4,6 +4,8 @@
 #include <cmath>
 #include <vector>
 
+#include "material_params.h"
+
 namespace phongfit {
 
 namespace {
@@ -104,7 +106,7 @@ double drift(const std::vector<double>& estimates) {
 
 void widenToDrift(FitResult& result) {
     for (std::size_t s = 0; s < result.materials.size(); ++s) {
-        const auto along = [&](auto value) {
+        const auto estimatesOf = [&](auto value) {
             // A round that kept its start exactly (its solve did not move it) says nothing of the
             // direction: it does not cut a run of moves short.
             std::vector<double> estimates;
@@ -112,8 +114,9 @@ void widenToDrift(FitResult& result) {
                 if (!r.probe && s < r.materials.size() &&
                     (estimates.empty() || value(r.materials[s]) != estimates.back()))
                     estimates.push_back(value(r.materials[s]));
-            return drift(estimates);
+            return estimates;
         };
+        const auto along = [&](auto value) { return drift(estimatesOf(value)); };
         MaterialFit& m = result.materials[s];
         for (int c = 0; c < 3; ++c) {
             if (m.kdStd[c] > 0)
@@ -123,7 +126,17 @@ void widenToDrift(FitResult& result) {
                 m.ksStd[c] =
                     std::max(m.ksStd[c], along([c](const MaterialFit& f) { return f.ks[c]; }));
         }
-        if (m.nStd > 0) m.nStd = std::max(m.nStd, along([](const MaterialFit& f) { return f.n; }));
+        if (m.nStd > 0) {
+            // n climbs by factors: its drift is judged in log n too, and the farther reach counts
+            // (on the side it moved to, within n's range).
+            const std::vector<double> logN =
+                estimatesOf([](const MaterialFit& f) { return std::log(f.n); });
+            const double d = drift(logN);
+            const double reach = logN.size() >= 2 && logN.back() > logN[logN.size() - 2]
+                                     ? std::min(m.n * std::expm1(d), kMaxExponent - m.n)
+                                     : -m.n * std::expm1(-d);
+            m.nStd = std::max({m.nStd, along([](const MaterialFit& f) { return f.n; }), reach});
+        }
     }
 }
 

@@ -459,11 +459,13 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // reaches the lobe it stayed at.
         if (unreturned && !vouched) widenToProbe(result.materials, unreturned->probe);
         widenToRoundScatter(result);
-        // Stopped while the estimate still moved (a probe left unvouched has its own widening).
+        // Stopped before showing where the estimate stops (a probe left unvouched has its own
+        // widening): while it still moved, or settled round by round but not as precise as asked,
+        // which a climb does as well.
         const std::string& why = result.stopReason;
         if (!result.converged && !result.rounds.empty() && !result.rounds.back().probe &&
             (why == "rounds" || why == "time budget" || why == "memory" || why == "interrupted" ||
-             why == "sharper lobe"))
+             why == "sharper lobe" || why == "precision not met" || why == "path cap"))
             widenToDrift(result);
     }
     // The image's own noise, which the sandwich misses where one pixel holds a parameter; a

@@ -7,6 +7,8 @@
 #include <random>
 #include <tuple>
 
+#include "material_params.h"
+
 namespace phongfit {
 namespace {
 
@@ -175,36 +177,50 @@ FitResult history(const std::vector<double>& n, double nStd) {
     return result;
 }
 
-// A fit that stopped while moving: a climb whose moves do not shrink (the 40-degree sphere at
+// A fit that stopped while moving: a climb whose moves do not shrink in n (the 40-degree sphere at
 // n 30000: 857, 2036, 8743, 11000, 15240, 17070) may go on as far as it went; one that converges
 // geometrically (moves 200, 65, 4.5, 0.4: rho 0.126) has the last move left at least; a swing
-// back has the last move. Steady kd keeps its standard error; probe rounds do not count.
+// back has the last move. n is judged in log n too: a climb by steady factors (the 40-degree
+// sphere at 128 x 128: 275, 533, 1299, 2269, 5736, still 5.2x short) may go on by the factor it
+// went, 20.8x, within n's range. Steady kd keeps its standard error; probe rounds do not count.
 TEST(RoundDrift, RaisesStandardErrorsToHowFarTheEstimateMayStillGo) {
     FitResult climb = history({857, 2036, 8743, 11000, 15240, 17070}, 2890);
     widenToDrift(climb);
     EXPECT_DOUBLE_EQ(climb.materials[0].nStd, 17070 - 857);
     EXPECT_EQ(climb.materials[0].kdStd[0], 1e-3);
 
+    FitResult factors = history({275.4, 533.2, 1299, 2269, 5736}, 5461);
+    widenToDrift(factors);
+    EXPECT_NEAR(factors.materials[0].nStd, 5736 * (5736 / 275.4 - 1), 1e-6);
+    FitResult bounded = history({275.4, 533.2, 1299, 2269, 57360}, 5461);
+    widenToDrift(bounded);
+    EXPECT_DOUBLE_EQ(bounded.materials[0].nStd, kMaxExponent - 57360);
+
+    // Moves down: log n's drift reaches n (1 - e^-d), less than the last move here.
     FitResult converging = history({300, 100, 35, 30.5, 30.1}, 0.1);
     widenToDrift(converging);
     EXPECT_NEAR(converging.materials[0].nStd, 0.4, 1e-12);
 
-    // Moves 4, 2, 1 (rho 0.5): one more move of 1 is left; a standard error above it stays.
+    // Moves 4, 2, 1 (rho 0.5): one more move of 1 is left, in log n one more of its factor
+    // 107 / 106 with its own rho; a standard error above both stays.
     FitResult halving = history({100, 104, 106, 107}, 0.5);
     widenToDrift(halving);
-    EXPECT_NEAR(halving.materials[0].nStd, 1, 1e-12);
+    const double last = std::log(107.0 / 106), rho = std::sqrt(last / std::log(1.04));
+    EXPECT_NEAR(halving.materials[0].nStd, 107 * std::expm1(std::max(last, last * rho / (1 - rho))),
+                1e-9);
+    EXPECT_GT(halving.materials[0].nStd, 1);
     halving.materials[0].nStd = 3;
     widenToDrift(halving);
     EXPECT_EQ(halving.materials[0].nStd, 3);
 
     FitResult swing = history({1000, 1100, 1000, 1100}, 10);
     widenToDrift(swing);
-    EXPECT_DOUBLE_EQ(swing.materials[0].nStd, 100);
+    EXPECT_NEAR(swing.materials[0].nStd, 110, 1e-9);
 
     FitResult probed = history({1000, 1100, 5000, 1200}, 10);
     probed.rounds[2].probe = true;
     widenToDrift(probed);
-    EXPECT_DOUBLE_EQ(probed.materials[0].nStd, 200);
+    EXPECT_NEAR(probed.materials[0].nStd, 1200 * (1200.0 / 1000 - 1), 1e-9);
 
     // A round that kept its start exactly does not end the run: the Cornell box under the
     // 40-degree light (n 30000, ks 0.5) climbed 537, 875, 7985, 9232, 9232, 9833 and reported
