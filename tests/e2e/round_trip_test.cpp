@@ -331,6 +331,27 @@ TEST_F(RoundTrip, ClimbThatSettlesShortOfTheLobeCoversItsDrift) {
     }
 }
 
+// ks 0.05: seed 0 climbs 237, 1127, 1318, 3821 and settles in its last round at 6524 +- 1945,
+// a move of 1.4 of its standard errors; with no round left for a sharper probe it had ended
+// "converged" (n +- 4468, 5.3 standard errors short). A lobe still climbing is not converged, and
+// its drift covers the truth.
+TEST_F(RoundTrip, ClimbThatSettlesInTheLastRoundIsNotConverged) {
+    const std::map<std::string, std::string> truth = {
+        {"width", "128"},     {"height", "128"}, {"light_radius", "2.418"},
+        {"radiance", "8.17"}, {"sky", "0"},      {"kd", "0.7"},
+        {"ks", "0.05"},       {"n", "30000"}};
+    const std::string image = render(kSharpArea, truth, "climb", 1024);
+    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "300"};
+    for (const auto& [k, v] : truth)
+        if (k != "kd" && k != "ks" && k != "n") extra.insert(extra.end(), {"-D", k + "=" + v});
+    const auto report = fit({kSharpArea + ":" + image}, extra, "fit", 0);
+    EXPECT_EQ(report["stop_reason"], "sharper lobe");
+    EXPECT_FALSE(report["converged"].get<bool>());
+    EXPECT_EQ(report["rounds"].size(), 6u);
+    expectCovered(report["materials"]["sphere"], {0.7, 0.7, 0.7}, {0.05, 0.05, 0.05}, 30000,
+                  "climb, ks 0.05");
+}
+
 // Images from an independent renderer: Tungsten's renders of sphere_quad.xml
 // (tests/data/tungsten/README.md), its own sampler, noise and Phong code, fitted at the defaults
 // from kd, ks 0.3 and n far off. Seen on them: n 5128 +- 190 for 5000 and 3058 +- 63 for 3000
