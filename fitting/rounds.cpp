@@ -197,10 +197,9 @@ struct Settled {
 
 // Whether some material's n is still climbing: the last round moved it sharper by at least its
 // standard error (the image's noise as its floor), after a round that moved it sharper too (probe
-// rounds left out). A converged
-// estimate's moves do that about one time in ten (independent rounds, the last move the
-// difference of two estimates); the 40-degree sphere at 128 x 128 (n 30000)
-// "converged" in its last round at 237, 1127, 1318, 3821, 6524 +- 1945, 5.3 short.
+// rounds left out). A converged estimate's moves do that about one time in ten (independent
+// rounds); the 40-degree sphere at 128 x 128 (n 30000) had "converged" in its last round at 237,
+// 1127, 1318, 3821, 6524 +- 1945, 5.3 standard errors short (docs/design/fitter.md).
 bool climbing(const std::vector<FitRound>& rounds) {
     std::vector<const FitRound*> recorded;
     for (const FitRound& r : rounds)

@@ -48,7 +48,7 @@ D logCosAlpha(const Vec3<D>& wi, const Vec3<D>& wo) {
 }
 
 // Below this n log(cos alpha) the lobe is taken as 0: cos^n(alpha) < 4.3e-18, below double
-// precision next to the lobe's peak (1 at alpha = 0). A sharp lobe's replay spent 40-50% of its
+// precision next to the lobe's peak (1 at alpha = 0). A sharp lobe's replay spent 40-53% of its
 // exp calls on such terms (docs/design/fitter.md, "The lobe's tail").
 inline constexpr double kLobeTail = -40;
 

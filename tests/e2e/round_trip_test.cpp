@@ -66,6 +66,29 @@ protected:
         return nlohmann::json::parse(std::ifstream(path(name) + "/fit.json"));
     }
 
+    // The recovery matrix's sphere under the 40-degree light (its radius 2.418 at the scene's
+    // distance) at 128 x 128 with n 30000: the view of its image rendered at `spp` and the fit's
+    // arguments from kd, ks 0.3 and n 300.
+    struct LargeLightCase {
+        std::string view;
+        std::vector<std::string> extra;
+    };
+    LargeLightCase largeLightSphere(const std::string& kd, const std::string& ks,
+                                    const std::string& name, int spp) {
+        const std::map<std::string, std::string> scene = {{"width", "128"},
+                                                          {"height", "128"},
+                                                          {"light_radius", "2.418"},
+                                                          {"radiance", "8.17"},
+                                                          {"sky", "0"}};
+        std::map<std::string, std::string> truth = scene;
+        truth.insert({{"kd", kd}, {"ks", ks}, {"n", "30000"}});
+        LargeLightCase c{kSharpArea + ":" + render(kSharpArea, truth, name, spp),
+                         {"--kd", "0.3", "--ks", "0.3", "--n", "300"}};
+        const std::vector<std::string> d = defines(scene);
+        c.extra.insert(c.extra.end(), d.begin(), d.end());
+        return c;
+    }
+
     const test::TempDir temp_{"roundtrip"};
     const fs::path& dir_ = temp_.path();
 };
@@ -287,21 +310,14 @@ TEST_F(RoundTrip, AreaLightSharpLobeIsFoundWithAdaptivePaths) {
     EXPECT_LT(nStd, 0.3 * 5000) << "the lobe is resolved";
 }
 
-// The recovery matrix's sphere under the 40-degree light (its radius 2.418 at the scene's
-// distance), with a lobe far narrower than a pixel's reach (n 30000, at 128 x 128): the pixels at
-// the edge of the light's reflection hold n, and once they carry the most paths a recording gives
-// a pixel, more paths cannot meet the precision. The fit ends there ("path cap"), before the
+// The recovery matrix's sphere under the 40-degree light, with a lobe far narrower than a pixel's
+// reach (n 30000, at 128 x 128; largeLightSphere): the pixels at the edge of the light's
+// reflection hold n, and once they carry the most paths a recording gives a pixel, more paths
+// cannot meet the precision. The fit ends there ("path cap"), before the
 // rounds run out, not converged, with the truth within 3 standard errors.
 TEST_F(RoundTrip, LobeHeldByPixelsAtTheirPathCapEndsThere) {
-    const std::map<std::string, std::string> truth = {
-        {"width", "128"},     {"height", "128"}, {"light_radius", "2.418"},
-        {"radiance", "8.17"}, {"sky", "0"},      {"kd", "0.45"},
-        {"ks", "0.5"},        {"n", "30000"}};
-    const std::string image = render(kSharpArea, truth, "wide", 256);
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "300"};
-    for (const auto& [k, v] : truth)
-        if (k != "kd" && k != "ks" && k != "n") extra.insert(extra.end(), {"-D", k + "=" + v});
-    const auto report = fit({kSharpArea + ":" + image}, extra, "fit", 5);
+    const LargeLightCase c = largeLightSphere("0.45", "0.5", "wide", 256);
+    const auto report = fit({c.view}, c.extra, "fit", 5);
     EXPECT_EQ(report["stop_reason"], "path cap");
     EXPECT_LT(report["rounds"].size(), 6u);
     EXPECT_FALSE(report["converged"].get<bool>());
@@ -314,16 +330,9 @@ TEST_F(RoundTrip, LobeHeldByPixelsAtTheirPathCapEndsThere) {
 // 1977, 6364, 7883, 9156 +- 6245, 3.3 standard errors short; seed 2: 5539 +- 1163, 21 short,
 // before n's drift was judged in log n and taken at that stop too). Their drift covers the truth.
 TEST_F(RoundTrip, ClimbThatSettlesShortOfTheLobeCoversItsDrift) {
-    const std::map<std::string, std::string> truth = {
-        {"width", "128"},     {"height", "128"}, {"light_radius", "2.418"},
-        {"radiance", "8.17"}, {"sky", "0"},      {"kd", "0.45"},
-        {"ks", "0.5"},        {"n", "30000"}};
-    const std::string image = render(kSharpArea, truth, "climb", 1024);
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "300"};
-    for (const auto& [k, v] : truth)
-        if (k != "kd" && k != "ks" && k != "n") extra.insert(extra.end(), {"-D", k + "=" + v});
+    const LargeLightCase c = largeLightSphere("0.45", "0.5", "climb", 1024);
     for (const int seed : {1, 2}) {
-        const auto report = fit({kSharpArea + ":" + image}, extra, "fit", seed);
+        const auto report = fit({c.view}, c.extra, "fit", seed);
         EXPECT_EQ(report["stop_reason"], "precision not met") << seed;
         EXPECT_FALSE(report["converged"].get<bool>()) << seed;
         expectCovered(report["materials"]["sphere"], {0.45, 0.45, 0.45}, {0.5, 0.5, 0.5}, 30000,
@@ -336,15 +345,8 @@ TEST_F(RoundTrip, ClimbThatSettlesShortOfTheLobeCoversItsDrift) {
 // "converged" (n +- 4468, 5.3 standard errors short). A lobe still climbing is not converged, and
 // its drift covers the truth.
 TEST_F(RoundTrip, ClimbThatSettlesInTheLastRoundIsNotConverged) {
-    const std::map<std::string, std::string> truth = {
-        {"width", "128"},     {"height", "128"}, {"light_radius", "2.418"},
-        {"radiance", "8.17"}, {"sky", "0"},      {"kd", "0.7"},
-        {"ks", "0.05"},       {"n", "30000"}};
-    const std::string image = render(kSharpArea, truth, "climb", 1024);
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "300"};
-    for (const auto& [k, v] : truth)
-        if (k != "kd" && k != "ks" && k != "n") extra.insert(extra.end(), {"-D", k + "=" + v});
-    const auto report = fit({kSharpArea + ":" + image}, extra, "fit", 0);
+    const LargeLightCase c = largeLightSphere("0.7", "0.05", "climb", 1024);
+    const auto report = fit({c.view}, c.extra, "fit", 0);
     EXPECT_EQ(report["stop_reason"], "sharper lobe");
     EXPECT_FALSE(report["converged"].get<bool>());
     EXPECT_EQ(report["rounds"].size(), 6u);
