@@ -313,8 +313,8 @@ TEST_F(RoundTrip, AreaLightSharpLobeIsFoundWithAdaptivePaths) {
 // The recovery matrix's sphere under the 40-degree light, with a lobe far narrower than a pixel's
 // reach (n 30000, at 128 x 128; largeLightSphere): the pixels at the edge of the light's
 // reflection hold n, and once they carry the most paths a recording gives a pixel, more paths
-// cannot meet the precision. The fit ends there ("path cap"), before the
-// rounds run out, not converged, with the truth within 3 standard errors.
+// cannot meet the precision. The fit ends there ("path cap"), before the rounds run out, not
+// converged, with the truth within 3 standard errors.
 TEST_F(RoundTrip, LobeHeldByPixelsAtTheirPathCapEndsThere) {
     const LargeLightCase c = largeLightSphere("0.45", "0.5", "wide", 256);
     const auto report = fit({c.view}, c.extra, "fit", 5);
