@@ -16,6 +16,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -81,6 +82,27 @@ struct SummingSink {
         film.add(c, vertices);
     }
 };
+
+// The tiles with samples in [s0, s1), the most first. Threads take them in this order, one at a
+// time: where a fit's recording spends most of its paths in a few tiles' pixels, those start
+// first instead of ending a pass on one thread.
+template <typename Film>
+std::vector<std::size_t> passOrder(const std::vector<Tile>& tiles, const FilmWindow& window,
+                                   const Film& film, int s0, int s1) {
+    std::vector<std::uint64_t> work(tiles.size(), 0);
+    std::vector<std::size_t> order;
+    for (std::size_t t = 0; t < tiles.size(); ++t) {
+        for (int y = tiles[t].y0; y < tiles[t].y1; ++y)
+            for (int x = tiles[t].x0; x < tiles[t].x1; ++x) {
+                const int n = film.samples(std::uint32_t(y) * window.width + std::uint32_t(x));
+                work[t] += std::uint64_t(std::clamp(n, s0, s1) - s0);
+            }
+        if (work[t] > 0) order.push_back(t);
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return work[a] > work[b]; });
+    return order;
+}
 }  // namespace detail
 
 // Feeds `film`, which provides, for pixel p = y * width + x of the loop's window (x, y from its
@@ -107,11 +129,15 @@ RenderStats traceTiles(const TileLoop& loop, Film& film) {
              s0 += passSize, passSize = std::min(2 * passSize, std::max(1, loop.samples / 8))) {
             const int s1 = std::min(loop.samples, s0 + passSize);
             const bool stoppable = s0 > 0;
+            const std::vector<std::size_t> order = detail::passOrder(tiles, window, film, s0, s1);
+            std::atomic<std::size_t> next{0};
             tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const auto& range) {
+                tbb::blocked_range<int>(0, tbb::this_task_arena::max_concurrency(), 1),
+                [&](const auto&) {
                     std::uint64_t& rayCount = rays.local();
-                    for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                    for (std::size_t i = next++; i < order.size(); i = next++) {
                         if (stoppable && stopRequested()) return;
+                        const std::size_t t = order[i];
                         const Tile& tile = tiles[t];
                         std::uint64_t traced = 0;
                         for (int y = window.y0 + tile.y0; y < window.y0 + tile.y1; ++y)
