@@ -215,20 +215,6 @@ bool climbing(const std::vector<FitRound>& rounds) {
     return false;
 }
 
-// Whether the last round, recorded as the fit planned, left out the last lobe it had: every
-// material's n is held now with ks below kReflectanceFloor (the images show no lobe), and some
-// material's n was free in the round before. (A lobe held with ks well above 0 is one the round
-// could not resolve, not one that is not there.)
-bool lastLobeHeld(const std::vector<FitRound>& rounds) {
-    if (rounds.size() < 2 || rounds.back().probe) return false;
-    const auto lobeless = [](const FitRound& r) {
-        return std::all_of(r.materials.begin(), r.materials.end(), [](const MaterialFit& m) {
-            return m.isUnconstrained("n") && m.ks.maxCoeff() < kReflectanceFloor;
-        });
-    };
-    return lobeless(rounds.back()) && !lobeless(rounds[rounds.size() - 2]);
-}
-
 // `result` holds the round's estimate `out`, which stopped moving. Its stop reason and whether it
 // is converged: resolved and as precise as FitOptions::precision asks (if `planned`: the sets are
 // recorded, so more paths can be asked for) or at the image's noise floor; a converged lobe is
@@ -441,9 +427,6 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         }
         if (probeLeft) break;
         probed.reset();
-        // Paths grown while the rounds fitted a lobe the images do not show: what is left to
-        // fit, kd and ks, starts again from the first round's paths.
-        if (!exact && lastLobeHeld(result.rounds)) pathFactor = 1;
         growth = pathFactor / recordFactor;  // the next round's paths against this one's
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
         bool importanceTaken = false;        // the next round's importance, already at theta
