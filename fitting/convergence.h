@@ -9,6 +9,8 @@
 
 #include "fitter.h"
 #include "material_params.h"
+#include "precision_target.h"
+#include "round_outcome.h"
 
 namespace phongfit {
 
@@ -35,6 +37,52 @@ bool withinTolerance(const std::vector<Eigen::Matrix<double, P, 1>>& before,
         }
     }
     return true;
+}
+
+// Per block and parameter, the part of a round's standard error `naturalStd` that is its
+// recordings' own noise (`pathShare`, RoundOutcome's); empty without a share.
+inline std::vector<std::vector<double>> pathNoise(
+    const std::vector<std::vector<double>>& naturalStd,
+    const std::vector<std::vector<double>>& pathShare) {
+    if (pathShare.size() != naturalStd.size()) return {};
+    std::vector<std::vector<double>> noise = naturalStd;
+    for (std::size_t b = 0; b < noise.size(); ++b)
+        for (std::size_t i = 0; i < noise[b].size() && i < pathShare[b].size(); ++i)
+            noise[b][i] *= std::sqrt(std::clamp(pathShare[b][i], 0.0, 1.0));
+    return noise;
+}
+
+// `noise`, per block and parameter, with the independent noise `more` added (none if empty).
+inline void addPathNoise(std::vector<std::vector<double>>& noise,
+                         const std::vector<std::vector<double>>& more) {
+    for (std::size_t b = 0; b < noise.size() && b < more.size(); ++b)
+        for (std::size_t i = 0; i < noise[b].size() && i < more[b].size(); ++i)
+            noise[b][i] = std::hypot(noise[b][i], more[b][i]);
+}
+
+// A settled round's path noise (pathNoise) and paths, for the next round's move; only where its
+// recordings resolve its estimate (a parameter as uncertain as it is large is no estimate to be
+// near, and its standard error would pass any move).
+struct SettledRound {
+    std::vector<std::vector<double>> pathNoise;  // empty for none
+    double pathFactor = 1;
+};
+
+// Whether a round recorded at `last`'s estimate with `pathFactor` paths settled there too: as
+// precise as FitOptions::precision asks, and moved by less than stdTolerance times its own
+// standard errors (`noise`) and `last`'s path noise together. After the paths grew its own are
+// the smaller part of that move's noise (docs/design/fitter.md, "Convergence").
+template <int P>
+bool settledAgain(const std::vector<Eigen::Matrix<double, P, 1>>& before,
+                  const std::vector<Eigen::Matrix<double, P, 1>>& after,
+                  std::vector<std::vector<double>> noise, const SettledRound& last,
+                  const RoundOutcome& out, const ParameterState<P>& params,
+                  const FitOptions& options, double pathFactor) {
+    if (last.pathNoise.empty() || options.precision <= 0 || pathFactor <= last.pathFactor ||
+        !planPrecision<P>(params, out.naturalStd, out.pathShare, options.precision, pathFactor).met)
+        return false;
+    addPathNoise(noise, last.pathNoise);
+    return withinTolerance<P>(before, after, noise, options);
 }
 
 }  // namespace phongfit

@@ -300,7 +300,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         std::vector<MaterialFit> converged, probe;
     };
     std::optional<Unreturned> unreturned;
-    bool vouched = false;  // the fit ends at a converged estimate its probe came back to
+    bool vouched = false;       // the fit ends at a converged estimate its probe came back to
+    SettledRound settledRound;  // the last round, if it settled
     if (rerecords)
         requireMemory(leastFirstRoundBytes(observations), fitMemoryAvailable(options.memoryLimit),
                       fmt::format("the fit's first round ({} bytes of fit state and two "
@@ -356,8 +357,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // Exact sets (the same list as both recordings) give the same problem every round: the
         // solver's own convergence is the answer.
         const auto before = params.naturalBlocks(recorded), after = params.naturalBlocks(solved);
-        const bool settled =
-            withinTolerance<P>(before, after, noise, options) || (exact && out.solverConverged);
+        const bool settled = withinTolerance<P>(before, after, noise, options) ||
+                             (exact && out.solverConverged) ||
+                             (!probed && settledAgain<P>(before, after, noise, settledRound, out,
+                                                         params, options, recordFactor));
         // A round that did not settle by more than the precision target tolerates.
         const bool movedPast =
             options.precision > 0 && movedPastTarget<P>(params, before, after, options.precision);
@@ -396,6 +399,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
+        settledRound = settled && round > 0 && !probed && !exact && allResolved(out.materials)
+                           ? SettledRound{pathNoise(out.naturalStd, out.pathShare), recordFactor}
+                           : SettledRound{};
         const bool stop = solveOptions.stopRequested();
         if (probeBack) {
             probed->rounds = std::move(result.rounds);

@@ -61,6 +61,23 @@ TEST(Convergence, AMoveWithinTheStandardErrorsPasses) {
     EXPECT_FALSE(withinTolerance<kRgbBlock>(before, after, stdNatural, o));
 }
 
+// A round's path noise is its standard error times the square root of the recordings' share; two
+// rounds' independent noises add in quadrature.
+TEST(Convergence, PathNoiseIsTheRecordingsShareAndAddsInQuadrature) {
+    const std::vector<std::vector<double>> std = {{0.2, 0.4}}, share = {{0.25, 1.5}};
+    const std::vector<std::vector<double>> paths = pathNoise(std, share);
+    ASSERT_EQ(paths.size(), 1u);
+    EXPECT_DOUBLE_EQ(paths[0][0], 0.1);
+    EXPECT_DOUBLE_EQ(paths[0][1], 0.4);  // a share is at most 1
+    EXPECT_TRUE(pathNoise(std, {}).empty());
+    std::vector<std::vector<double>> noise = {{0.3, 0.3}};
+    addPathNoise(noise, paths);
+    EXPECT_DOUBLE_EQ(noise[0][0], std::hypot(0.3, 0.1));
+    EXPECT_DOUBLE_EQ(noise[0][1], 0.5);
+    addPathNoise(noise, {});
+    EXPECT_DOUBLE_EQ(noise[0][1], 0.5);
+}
+
 TEST(Convergence, EveryBlockAndTheGreyLayout) {
     const FitOptions o = tolerances(1e-3, 3);
     Grey a, b;

@@ -933,14 +933,17 @@ TEST(Fitter, RoundsThatDoNotSettleRecordMorePaths) {
     EXPECT_EQ(pathFactors, (std::vector<double>{1, 1, 1, 1})) << "no target";
 }
 
-// Each recording an unbiased but noisy estimate of `scene`: constants times 1 + 10% noise, drawn
-// from seed + the recording's index.
-PathRecorder noisyRecorder(const SphereScene& scene, unsigned seed) {
-    return [scene, seed](int, const std::vector<PhongMaterial>&, int recording,
-                         const std::vector<float>&, double) {
+// Each recording an unbiased but noisy estimate of `scene`: constants times 1 + noise of relative
+// standard deviation `sigma` (over the square root of the recorder's path factor if `averaged`, as
+// that many recordings' mean), drawn from seed + the recording's index.
+PathRecorder noisyRecorder(const SphereScene& scene, unsigned seed, double sigma = 0.1,
+                           bool averaged = false) {
+    return [scene, seed, sigma, averaged](int, const std::vector<PhongMaterial>&, int recording,
+                                          const std::vector<float>&, double pathFactor) {
         PathSet ps = makePaths(scene);
         std::mt19937 rng(seed + unsigned(recording));
-        std::normal_distribution<float> noise(0, 0.1f);
+        std::normal_distribution<float> noise(
+            0, float(averaged ? sigma / std::sqrt(pathFactor) : sigma));
         for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
         return ps;
     };
@@ -969,6 +972,49 @@ TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
     options.stdTolerance = 0;
     options.maxRounds = 3;
     EXPECT_FALSE(fitMaterials({obs}, record, {start}, options).converged);
+}
+
+// Paths that grow average their noise down. A round recorded at a settled round's estimate with
+// more paths moves from it by both rounds' path noise, the larger part the settled round's; by its
+// own standard errors alone the move would not have settled and the paths would have grown again.
+// As precise as asked and within both, the fit stops there.
+TEST(Fitter, AMoveAfterThePathsGrewIsJudgedByBothRoundsPathNoise) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
+    FitOptions options;
+    options.maxRounds = 8;
+    options.precision = 0.03;
+    options.recordingFollowsEstimate = false;  // no sharper probe: the rounds alone
+    const FitResult r = fitMaterials({obs}, noisyRecorder(scene, 1, 0.5, true), {start}, options);
+    expectFinite(r);
+    std::size_t grown = 0;  // the first round with more paths
+    while (grown < r.rounds.size() && r.rounds[grown].pathFactor == 1) ++grown;
+    ASSERT_GE(grown, 2u);
+    ASSERT_EQ(r.rounds.size(), grown + 1);
+    EXPECT_TRUE(r.converged);
+    EXPECT_EQ(r.stopReason, "precision");
+    // The move past 3 of the grown round's own standard errors, within 3 of both rounds'.
+    const MaterialFit &settled = r.rounds[grown - 1].materials[0],
+                      &last = r.rounds[grown].materials[0];
+    double most = 0, mostBoth = 0;
+    const auto count = [&](double move, double own, double before) {
+        most = std::max(most, std::abs(move) / own);
+        mostBoth = std::max(mostBoth, std::abs(move) / std::hypot(own, before));
+    };
+    for (int c = 0; c < 3; ++c) {
+        count(last.kd[c] - settled.kd[c], last.kdStd[c], settled.kdStd[c]);
+        count(last.ks[c] - settled.ks[c], last.ksStd[c], settled.ksStd[c]);
+    }
+    count(std::log(last.n / settled.n), last.nStd / last.n, settled.nStd / settled.n);
+    EXPECT_GT(most, options.stdTolerance);
+    EXPECT_LT(mostBoth, options.stdTolerance);
+    const MaterialFit& m = r.materials[0];
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_LT(std::abs(m.kd[c] - kTruth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.ks[c] - kTruth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
+    }
+    EXPECT_LT(std::abs(m.n - kTruth.n), 3 * m.nStd);
 }
 
 // Round 0 records at the start, not at an estimate: its move from the start is no difference
