@@ -220,6 +220,15 @@ void expectRecovered(const MaterialFit& fit, const PhongMaterial& truth, double 
     EXPECT_NEAR(fit.n, truth.n, relative * truth.n);
 }
 
+// The truth within 3 of the fit's reported standard errors, every parameter.
+void expectCovered(const MaterialFit& fit, const PhongMaterial& truth) {
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_LT(std::abs(fit.kd[c] - truth.kd[c]), 3 * fit.kdStd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(fit.ks[c] - truth.ks[c]), 3 * fit.ksStd[c]) << "ks " << c;
+    }
+    EXPECT_LT(std::abs(fit.n - truth.n), 3 * fit.nStd);
+}
+
 bool contains(const std::vector<std::string>& names, const std::string& name) {
     return std::find(names.begin(), names.end(), name) != names.end();
 }
@@ -961,12 +970,7 @@ TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
     EXPECT_TRUE(r.converged);
     EXPECT_GE(r.rounds.size(), 2u);
     EXPECT_LT(r.rounds.size(), 8u);
-    const MaterialFit& m = r.materials[0];
-    for (int c = 0; c < 3; ++c) {
-        EXPECT_LT(std::abs(m.kd[c] - kTruth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
-        EXPECT_LT(std::abs(m.ks[c] - kTruth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
-    }
-    EXPECT_LT(std::abs(m.n - kTruth.n), 3 * m.nStd);
+    expectCovered(r.materials[0], kTruth);
 
     // With only the relative tolerance, noise keeps the rounds going.
     options.stdTolerance = 0;
@@ -1009,12 +1013,7 @@ TEST(Fitter, AMoveAfterThePathsGrewIsJudgedByBothRoundsPathNoise) {
     count(std::log(last.n / settled.n), last.nStd / last.n, settled.nStd / settled.n);
     EXPECT_GT(most, options.stdTolerance);
     EXPECT_LT(mostBoth, options.stdTolerance);
-    const MaterialFit& m = r.materials[0];
-    for (int c = 0; c < 3; ++c) {
-        EXPECT_LT(std::abs(m.kd[c] - kTruth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
-        EXPECT_LT(std::abs(m.ks[c] - kTruth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
-    }
-    EXPECT_LT(std::abs(m.n - kTruth.n), 3 * m.nStd);
+    expectCovered(r.materials[0], kTruth);
 }
 
 // Round 0 records at the start, not at an estimate: its move from the start is no difference
@@ -1216,12 +1215,8 @@ TEST(Fitter, RoundsOnFreshNoisyPathSetsConvergeToTheTruth) {
     ASSERT_EQ(recordings.size(), 2 * r.rounds.size());
     for (std::size_t k = 0; k < recordings.size(); ++k) EXPECT_EQ(recordings[k], int(k));
     const MaterialFit& m = r.materials[0];
-    for (int c = 0; c < 3; ++c) {
-        EXPECT_NEAR(m.kd[c], truth.kd[c], 0.01 * truth.kd[c]) << "kd " << c;
-        EXPECT_LT(std::abs(m.kd[c] - truth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
-        EXPECT_LT(std::abs(m.ks[c] - truth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
-    }
-    EXPECT_LT(std::abs(m.n - truth.n), 3 * m.nStd);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(m.kd[c], truth.kd[c], 0.01 * truth.kd[c]) << "kd " << c;
+    expectCovered(m, truth);
 }
 
 // One pixel holds the lobe (n 5000 under one directional light: a highlight a few tenths of a
