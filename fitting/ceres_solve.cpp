@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 
 #include "box_manifold.h"
 #include "error.h"
@@ -30,7 +31,8 @@ private:
 
 template <int P>
 int buildProblem(ceres::Problem& problem, ParameterState<P>& params, const std::vector<bool>& seen,
-                 std::vector<std::uint32_t>& blockSlots, std::vector<double*>& blocks) {
+                 const std::vector<bool>& pinned, std::vector<std::uint32_t>& blockSlots,
+                 std::vector<double*>& blocks) {
     int freeCount = 0;
     for (int s = 0; s < params.blockCount(); ++s) {
         if (!seen[s]) continue;
@@ -38,17 +40,19 @@ int buildProblem(ceres::Problem& problem, ParameterState<P>& params, const std::
         problem.AddParameterBlock(x, P);
         blockSlots.push_back(std::uint32_t(s));
         blocks.push_back(x);
-        const std::vector<int> constant = heldCoordinates<P>(params.held(s));
-        if (int(constant.size()) == P) {
+        std::vector<bool> fixed(P, false);
+        for (int i : heldCoordinates<P>(params.held(s))) fixed[i] = true;
+        for (int i = 0; i < P && !pinned.empty(); ++i)
+            if (pinned[std::size_t(s) * P + i]) fixed[i] = true;
+        const int constant = int(std::count(fixed.begin(), fixed.end(), true));
+        if (constant == P) {
             problem.SetParameterBlockConstant(x);
         } else {
             std::vector<double> lower(P), upper(P);
             internalBounds<P>(params.held(s), x, lower.data(), upper.data());
-            std::vector<bool> fixed(P, false);
-            for (int i : constant) fixed[i] = true;
             problem.SetManifold(x, new BoxManifold(lower, upper, fixed));
         }
-        freeCount += P - int(constant.size());
+        freeCount += P - constant;
     }
     return freeCount;
 }
@@ -94,15 +98,127 @@ Minimized solveProblem(ceres::Problem& problem, const FitOptions& options, doubl
             summary.minimizer_time_in_seconds, summary.termination_type == ceres::CONVERGENCE};
 }
 
+namespace {
+
+// Solves in a row that one minimization may take, each with the coordinates the last left on a
+// bound and pushing outward held there (minimizeInBox).
+constexpr int kMaxActiveSets = 4;
+
+// Adds the residual block to a problem that buildProblem has the parameter blocks of.
+using AddResidual =
+    std::function<void(ceres::Problem&, const std::vector<std::uint32_t>& blockSlots,
+                       const std::vector<double*>& blocks)>;
+
+struct OnBound {
+    std::size_t coordinate;  // slot * P + i
+    int tangent;             // its index among the free coordinates (Ceres' tangent space)
+    bool lower;
+};
+
+// The coordinates of `blocks` (buildProblem's) that `params` does not hold and that are on a bound
+// of the box.
+template <int P>
+std::vector<OnBound> freeOnBounds(const ParameterState<P>& params,
+                                  const std::vector<std::uint32_t>& blockSlots,
+                                  const std::vector<double*>& blocks) {
+    std::vector<OnBound> onBounds;
+    int tangent = 0;
+    for (std::size_t b = 0; b < blocks.size(); ++b) {
+        const int s = int(blockSlots[b]);
+        const double* x = blocks[b];
+        double lower[P], upper[P];
+        internalBounds<P>(params.held(s), x, lower, upper);
+        for (int i = 0; i < P; ++i) {
+            if (params.isHeld(s, i)) continue;
+            if (x[i] <= lower[i] || x[i] >= upper[i])
+                onBounds.push_back(
+                    {std::size_t(s) * P + std::size_t(i), tangent, x[i] <= lower[i]});
+            ++tangent;
+        }
+    }
+    return onBounds;
+}
+
+// Per coordinate (slot * P + i), whether it is free, on a bound of the box and the cost's
+// gradient there points out of it; empty when none is. Evaluates the gradient only when some free
+// coordinate is on a bound.
+template <int P>
+std::vector<bool> outwardOnBounds(ParameterState<P>& params, const std::vector<bool>& seen,
+                                  const AddResidual& add) {
+    ceres::Problem problem;
+    std::vector<std::uint32_t> blockSlots;
+    std::vector<double*> blocks;
+    if (buildProblem(problem, params, seen, {}, blockSlots, blocks) == 0) return {};
+    const std::vector<OnBound> onBounds = freeOnBounds(params, blockSlots, blocks);
+    if (onBounds.empty()) return {};
+    add(problem, blockSlots, blocks);
+    ceres::Problem::EvaluateOptions evaluate;
+    for (double* x : blocks)
+        if (!problem.IsParameterBlockConstant(x)) evaluate.parameter_blocks.push_back(x);
+    std::vector<double> gradient;
+    if (!problem.Evaluate(evaluate, nullptr, nullptr, &gradient, nullptr)) return {};
+    std::vector<bool> outward(std::size_t(params.blockCount()) * P, false);
+    bool any = false;
+    for (const OnBound& o : onBounds) {
+        const double g = gradient[std::size_t(o.tangent)];
+        if (o.lower ? g > 0 : g < 0) outward[o.coordinate] = any = true;
+    }
+    return any ? outward : std::vector<bool>{};
+}
+
+// One solve from `params`, holding `pinned` (buildProblem) besides what `params` holds.
+template <int P>
+Minimized solveOnce(ParameterState<P>& params, const std::vector<bool>& seen,
+                    const std::vector<bool>& pinned, const AddResidual& add,
+                    const FitOptions& options, double initialRadius, double functionTolerance,
+                    int maxIterations) {
+    ceres::Problem problem;
+    std::vector<std::uint32_t> blockSlots;
+    std::vector<double*> blocks;
+    if (buildProblem(problem, params, seen, pinned, blockSlots, blocks) == 0) return {};
+    add(problem, blockSlots, blocks);
+    Minimized m = solveProblem(problem, options, initialRadius, functionTolerance, maxIterations);
+    m.onBound = !freeOnBounds(params, blockSlots, blocks).empty();
+    return m;
+}
+
+// Minimizes a least-squares cost over the box by active sets: Ceres' steps are clamped into the
+// box (box_manifold.h), and a step that pushes a coordinate on a bound outward is cut back to the
+// trust region's shrinking radius in every coordinate, so a minimum on a bound (ks = 0 without a
+// lobe) was stopped short of, as converged, or crawled towards to the iteration cap. Each solve
+// here holds the coordinates on a bound that the gradient pushes outward, until a solution's are
+// the ones it held (docs/design/fitter.md, "Bounds").
+template <int P>
+Minimized minimizeInBox(ParameterState<P>& params, const std::vector<bool>& seen,
+                        const AddResidual& add, const FitOptions& options, double initialRadius,
+                        double functionTolerance, int maxIterations) {
+    Minimized total;
+    std::vector<bool> held = outwardOnBounds(params, seen, add);
+    for (int set = 1;; ++set) {
+        const Minimized m = solveOnce(params, seen, held, add, options, initialRadius,
+                                      functionTolerance, maxIterations - total.iterations);
+        total.iterations += m.iterations;
+        total.seconds += m.seconds;
+        total.converged = m.converged;
+        total.onBound = m.onBound;
+        if (total.iterations >= maxIterations || (options.stopRequested && options.stopRequested()))
+            return total;
+        std::vector<bool> outward = outwardOnBounds(params, seen, add);
+        if (outward == held) return total;
+        if (set == kMaxActiveSets) {
+            total.converged = false;
+            return total;
+        }
+        held = std::move(outward);
+    }
+}
+
+}  // namespace
+
 template <int P>
 Minimized minimizeLeastSquares(Objective<P>& objective, ParameterState<P>& params,
                                const std::vector<double>& weights, bool cross,
                                const FitOptions& options) {
-    ceres::Problem problem;
-    std::vector<std::uint32_t> blockSlots;
-    std::vector<double*> blocks;
-    if (buildProblem(problem, params, objective.pixels().slotSeen, blockSlots, blocks) == 0)
-        return {};
     // Ceres sees a cost |r|^2 / 2 >= 0, and the sum of cross products goes below 0 wherever the
     // recordings' noise outweighs the model's error: a constant offset, the noise's scale at the
     // start, keeps it positive without moving its minimum.
@@ -114,36 +230,42 @@ Minimized minimizeLeastSquares(Objective<P>& objective, ParameterState<P>& param
         objective.leastSquaresSums(y, weights, cross, squares, gradient, gramian);
         squares += offset;
     };
-    problem.AddResidualBlock(new LeastSquaresResidual<P>(sums, blockSlots, params.held(),
-                                                         freeIndices(params, blockSlots)),
-                             nullptr, blocks);
+    const auto add = [&params, &sums](ceres::Problem& problem,
+                                      const std::vector<std::uint32_t>& blockSlots,
+                                      const std::vector<double*>& blocks) {
+        problem.AddResidualBlock(new LeastSquaresResidual<P>(sums, blockSlots, params.held(),
+                                                             freeIndices(params, blockSlots)),
+                                 nullptr, blocks);
+    };
     // A far start's first Gauss-Newton step can jump log n to its bound, a dead end where the
     // lobe is invisible: start with steps that change log n by about 1 at most. Stop once a step
     // changes the cost by less than moving a tenth of a standard error does: with cost C at the
     // minimum over N residuals, k standard errors cost about k^2 C / N more.
     const double residuals = 3.0 * double(objective.pixels().seeingMaterial);
-    return solveProblem(problem, options, 1.0, std::max(kMomentTolerance, 0.01 / residuals),
-                        options.maxIterations);
+    return minimizeInBox(params, objective.pixels().slotSeen, add, options, 1.0,
+                         std::max(kMomentTolerance, 0.01 / residuals), options.maxIterations);
 }
 
 template <int P>
 Minimized minimizeMoments(Objective<P>& objective, ParameterState<P>& params,
                           const Instruments<P>& instruments, const FitOptions& options) {
-    ceres::Problem problem;
-    std::vector<std::uint32_t> blockSlots;
-    std::vector<double*> blocks;
-    if (buildProblem(problem, params, objective.pixels().slotSeen, blockSlots, blocks) == 0)
-        return {};
-    const std::vector<int> free = freeIndices(params, blockSlots);
     const auto moments = [&objective, &instruments](const double* y, Eigen::VectorXd& g,
                                                     Eigen::MatrixXd* dg) {
         instruments.momentSums(objective, y, g, dg);
     };
-    problem.AddResidualBlock(new MomentResidual<P>(moments, blockSlots, params.held(), free,
-                                                   instruments.whitening(free)),
-                             nullptr, blocks);
-    return solveProblem(problem, options, ceres::Solver::Options().initial_trust_region_radius,
-                        kMomentTolerance, std::min(options.maxIterations, kMomentIterations));
+    const auto add = [&params, &instruments, &moments](ceres::Problem& problem,
+                                                       const std::vector<std::uint32_t>& blockSlots,
+                                                       const std::vector<double*>& blocks) {
+        const std::vector<int> free = freeIndices(params, blockSlots);
+        problem.AddResidualBlock(new MomentResidual<P>(moments, blockSlots, params.held(), free,
+                                                       instruments.whitening(free)),
+                                 nullptr, blocks);
+    };
+    // A root of the moment equations is no minimum that a bound can hold: where none lies in the
+    // box the passes give up (estimators.cpp), and the active sets of minimizeInBox cycled there.
+    return solveOnce(params, objective.pixels().slotSeen, {}, add, options,
+                     ceres::Solver::Options().initial_trust_region_radius, kMomentTolerance,
+                     std::min(options.maxIterations, kMomentIterations));
 }
 
 template Minimized minimizeLeastSquares<kRgbBlock>(Objective<kRgbBlock>&,

@@ -28,14 +28,17 @@ struct Minimized {
     int iterations = 0;
     double seconds = 0;
     bool converged = true;  // Ceres stopped on a tolerance (nothing to solve counts)
+    bool onBound = false;   // some coordinate not held ended on a bound of the box
 };
 
 // Adds the blocks some used pixel sees (`seen`, per block), with their bounds and held
-// coordinates; `blockSlots` and `blocks` get each block's index and data. Returns the number of
-// free coordinates.
+// coordinates, and holds the coordinates `pinned` says (slot * P + i; empty: none) too;
+// `blockSlots` and `blocks` get each block's index and data. Returns the number of free
+// coordinates.
 template <int P>
 int buildProblem(ceres::Problem& problem, ParameterState<P>& params, const std::vector<bool>& seen,
-                 std::vector<std::uint32_t>& blockSlots, std::vector<double*>& blocks);
+                 const std::vector<bool>& pinned, std::vector<std::uint32_t>& blockSlots,
+                 std::vector<double*>& blocks);
 
 // The flat coordinates of the blocks in `blockSlots` that are not held.
 template <int P>
@@ -59,7 +62,8 @@ Minimized minimizeLeastSquares(Objective<P>& objective, ParameterState<P>& param
                                const std::vector<double>& weights, bool cross,
                                const FitOptions& options);
 
-// The moment equations g = 0 with `instruments`, from `params`.
+// The moment equations g = 0 with `instruments`, from `params`. Unconverged and on a bound: no root
+// in the box within reach.
 template <int P>
 Minimized minimizeMoments(Objective<P>& objective, ParameterState<P>& params,
                           const Instruments<P>& instruments, const FitOptions& options);

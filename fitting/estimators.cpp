@@ -142,7 +142,8 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     notWalking.stdTolerance = kWalkingMove;
     int hopeless = 0;  // passes in a row below kHopelessPrecision, not walking
     for (int pass = 1;; ++pass) {
-        account(out, minimizeMoments(objective_, params_, instruments_, options_));
+        const Minimized solved = minimizeMoments(objective_, params_, instruments_, options_);
+        account(out, solved);
         analysis = analyse();
         out.naturalStd = naturalStd(analysis.jacobian, analysis.scores);
         const double momentPrecision = precision(params_, out.naturalStd);
@@ -154,7 +155,10 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         hopeless = hopelessPass ? hopeless + 1 : 0;
         const bool settled = withinTolerance<P>(instrumentPoint, params_.naturalBlocks(),
                                                 noStd(params_.blockCount(), P), options_);
-        if (!settled && pass < kMaxPasses && hopeless < 2 && !stopping()) {
+        // A solve that crawled along a bound has no root in the box within reach: the anchor,
+        // least squares' minimum over the box, stands.
+        const bool blocked = !solved.converged && solved.onBound;
+        if (!settled && !blocked && pass < kMaxPasses && hopeless < 2 && !stopping()) {
             instruments_.adopt(objective_, at_);
             instrumentPoint = params_.naturalBlocks();
             continue;

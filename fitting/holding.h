@@ -9,8 +9,9 @@
 
 namespace phongfit {
 
-// Holds the parameters findUnconstrained finds in `analysis`' Gram matrix, then, if none, the
-// exponents of materials that show no lobe (holdUnseenExponents). True if anything new is held:
+// Holds the parameters findUnconstrained finds in `analysis`' Gram matrix (at their start; an n
+// found with its ks, a lobe no pixel sees, where it is), then, if none, the exponents of materials
+// that show no lobe (holdUnseenExponents). True if anything new is held:
 // the problem changed and is solved again.
 template <int P>
 bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,

@@ -24,8 +24,13 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
         fit.kdStd[c] = stdNatural[L::diffuse(L::group(c))];
         fit.ksStd[c] = stdNatural[L::specular(L::group(c))];
     }
-    // exp(log n) need not round-trip: a held n is reported exactly as it started.
-    if (held.n) fit.n = std::clamp(params.start(m).n, kMinExponent, kMaxExponent);
+    // A held n is reported, and the next round records, exactly as it started (exp(log n) need
+    // not round-trip); one held with ks, where no pixel sees the lobe (holding.cpp), where it is.
+    const bool lobeUnseen =
+        std::any_of(held.ks.begin(), held.ks.begin() + L::kGroups, [](bool h) { return h; });
+    const PhongMaterial& start = params.start(m);
+    if (held.n && (!lobeUnseen || y[L::kLogN] == naturalFromPhong<P>(start)[L::kLogN]))
+        fit.n = std::clamp(start.n, kMinExponent, kMaxExponent);
     fit.logNStd = stdNatural[L::kLogN];
     fit.nStd = fit.n * fit.logNStd;
     static constexpr const char* kChannel[3] = {"r", "g", "b"};

@@ -88,7 +88,7 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
         fmt::print("{}: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n", problem.materials[s],
                    formatColor(m.kd, m.kdStd, grey), formatColor(m.ks, m.ksStd, grey), m.n, m.nStd,
                    m.unconstrained.empty() ? ""
-                                           : fmt::format("  (unconstrained, held at start: {})",
+                                           : fmt::format("  (unconstrained, held: {})",
                                                          fmt::join(m.unconstrained, ", ")));
     }
     if (result.exposure)
