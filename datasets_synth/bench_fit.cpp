@@ -89,7 +89,7 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
     in.kd = o.startKd;
     in.ks = o.startKs;
     in.n = startExponent(o, s.truth.n);
-    const SceneRecording recording{spp, 0, 0, o.threads, o.adaptiveSpp};
+    const SceneRecording recording{spp, 0, 0, o.threads, o.adaptiveSpp, !o.sampledAreaLights};
     FitOptions options;
     options.maxRounds = o.rounds;
     options.precision = o.precision;
@@ -150,6 +150,7 @@ json settingsJson(const BenchFitOptions& o) {
             {"n_tolerance", o.nTolerance},
             {"rounds", o.rounds},
             {"adaptive_spp", o.adaptiveSpp},
+            {"sampled_area_lights", o.sampledAreaLights},
             {"precision", o.precision},
             {"time_budget", o.timeBudget},
             {"fail_threshold", o.failThreshold}};
@@ -169,7 +170,8 @@ void applySettings(const json& s, BenchFitOptions& o) {
     o.nTolerance = s.at("n_tolerance").get<double>();
     o.rounds = s.at("rounds").get<int>();
     o.adaptiveSpp = s.at("adaptive_spp").get<int>();
-    o.precision = s.value("precision", 0.0);  // runs before it had none
+    o.sampledAreaLights = s.value("sampled_area_lights", true);  // runs before rings sampled
+    o.precision = s.value("precision", 0.0);                     // runs before it had none
     o.timeBudget = s.value("time_budget", 0.0);
     o.failThreshold = s.at("fail_threshold").get<double>();
 }

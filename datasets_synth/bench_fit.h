@@ -26,7 +26,8 @@ struct BenchFitOptions {
     // toleranceFloor (absolute), n within nTolerance (relative).
     double kdKsTolerance = 0.02, toleranceFloor = 0.003, nTolerance = 0.05;
     int rounds = 6;
-    int adaptiveSpp = 0;                   // SceneRecording::adaptiveSpp (fit --adaptive-spp)
+    int adaptiveSpp = 0;             // SceneRecording::adaptiveSpp (fit --adaptive-spp)
+    bool sampledAreaLights = false;  // !SceneRecording::lightRings (fit --sampled-area-lights)
     double precision = kDefaultPrecision;  // FitOptions::precision (fit --precision)
     double timeBudget = 0;  // FitOptions::timeBudget of each fit (fit --time-budget); 0: none
     // A fit fails when it throws, returns a non-finite value, or misses a parameter by more than

@@ -243,4 +243,43 @@ Color3 LightSet::emitted(const Hit& hit, const Vec3d& dir) const {
     return lights_[index].value;
 }
 
+std::optional<LightCone> LightSet::cone(int index, const Vec3d& p) const {
+    const Light& l = lights_[index];
+    LightCone c;
+    if (l.type == Light::Type::Sphere) {
+        const std::optional<SphereCone> sc = sphereCone(scene_.shapes[l.shape], p);
+        if (!sc) return std::nullopt;
+        c.normals[0] = sc->axis;
+        c.offsets[0] = std::sqrt(1 - sc->sin2Max);
+        c.planes = 1;
+        return c;
+    }
+    if (l.type != Light::Type::Parallelogram || !(l.normal.dot(p - l.position) > 0))
+        return std::nullopt;
+    const std::array<Vec3d, 4> corners = {(l.position - p).normalized(),
+                                          (l.position + l.edges[0] - p).normalized(),
+                                          (l.position + l.edges[0] + l.edges[1] - p).normalized(),
+                                          (l.position + l.edges[1] - p).normalized()};
+    const Vec3d centre = (l.position + 0.5 * (l.edges[0] + l.edges[1]) - p).normalized();
+    for (int k = 0; k < 4; ++k) {
+        const Vec3d m = corners[k].cross(corners[(k + 1) % 4]);
+        if (!(m.squaredNorm() > 0)) return std::nullopt;  // seen edge-on
+        c.normals[k] = (m.dot(centre) < 0 ? -m : m).normalized();
+    }
+    c.planes = 4;
+    return c;
+}
+
+double LightSet::distanceTo(int index, const Vec3d& p, const Vec3d& wi) const {
+    const Light& l = lights_[index];
+    if (l.type == Light::Type::Sphere) {
+        const ShapeDesc& s = scene_.shapes[l.shape];
+        const Vec3d toCentre = s.center - p;
+        const double b = toCentre.dot(wi);
+        const double miss2 = (toCentre - b * wi).squaredNorm();
+        return b - std::sqrt(std::max(0.0, s.radius * s.radius - miss2));
+    }
+    return l.normal.dot(l.position - p) / l.normal.dot(wi);
+}
+
 }  // namespace phongfit

@@ -11,6 +11,7 @@
 
 #include "embree_scene.h"
 #include "environment_map.h"
+#include "light_rings.h"
 
 namespace phongfit {
 
@@ -45,6 +46,14 @@ public:
 
     // Emitted radiance leaving `hit` towards -dir (front side only).
     Color3 emitted(const Hit& hit, const Vec3d& dir) const;
+
+    // The directions from p that meet area light `index`: a sphere seen from outside, or a
+    // parallelogram seen from its front. None for other lights, which are sampled instead.
+    std::optional<LightCone> cone(int index, const Vec3d& p) const;
+    // Distance from p along the unit wi (a direction in the light's cone) to area light `index`.
+    double distanceTo(int index, const Vec3d& p, const Vec3d& wi) const;
+    // The radiance an area light emits (uniform over its front).
+    const Color3& radiance(int index) const { return lights_[index].value; }
 
 private:
     struct Light {

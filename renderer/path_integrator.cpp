@@ -1,5 +1,7 @@
 #include "path_integrator.h"
 
+#include <algorithm>
+
 namespace phongfit {
 
 PathIntegrator::PathIntegrator(const Scene& scene, const EmbreeScene& geometry,
@@ -16,6 +18,12 @@ PathIntegrator::PathIntegrator(const Scene& scene, const EmbreeScene& geometry,
       fittedSampler_(fittedSampler),
       settings_(settings),
       // Per bounce: lobe choice, 2D direction, roulette, then 3 per light.
-      dimensionsPerBounce_(4 + 2 * std::uint32_t(lights.size())) {}
+      dimensionsPerBounce_(4 + 2 * std::uint32_t(lights.size())),
+      nothingOccludes_(scene.shapes.size() <= 2 &&
+                       std::ranges::count_if(
+                           scene.shapes, [](const ShapeDesc& s) { return !s.areaRadiance; }) == 1 &&
+                       std::ranges::count_if(scene.shapes, [](const ShapeDesc& s) {
+                           return !s.areaRadiance && s.type == ShapeDesc::Type::Sphere;
+                       }) == 1) {}
 
 }  // namespace phongfit

@@ -24,6 +24,9 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
     Color3 constant = Color3::Ones();  // throughput without f at fitted vertices
     Color3 fittedF = Color3::Ones();   // product of f(theta0) at fitted vertices (for roulette)
     double bsdfPdf = 0;                // pdf of the direction that led to the current vertex
+    // Lights the previous vertex integrated by rings: the BRDF-sampled ray's emission from them is
+    // already counted.
+    std::uint64_t ringedBefore = 0;
     Ray ray = cameraRay;
     const int maxDepth = settings_.maxDepth;
 
@@ -45,14 +48,14 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
             return;
         }
         // Emission reached by BRDF sampling (or seen directly), weighted against light sampling.
-        if (lights_.lightOfShape(hit->shape) >= 0) {
+        if (const int hitLight = lights_.lightOfShape(hit->shape);
+            hitLight >= 0 && !(hitLight < 64 && (ringedBefore >> hitLight & 1))) {
             const Color3 le = lights_.emitted(*hit, ray.dir);
             if ((le > 0).any()) {
                 double w = 1;
                 if (depth > 1 && settings_.mis)
-                    w = detail::powerHeuristic(
-                        bsdfPdf,
-                        lights_.pdfArea(lights_.lightOfShape(hit->shape), ray.origin, *hit));
+                    w = detail::powerHeuristic(bsdfPdf,
+                                               lights_.pdfArea(hitLight, ray.origin, *hit));
                 sink.add(constant * le * w, std::span<const PathVertex>(prefix, prefixSize));
             }
         }
@@ -74,8 +77,16 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
                                        slot < 0 && !(m.ks > 0).any() && lights_.environment() < 0;
 
         // Next-event estimation on every light.
+        std::uint64_t ringed = 0;
         for (int l = 0; l < lights_.size(); ++l) {
             const std::uint32_t d = dim + 4 + 2 * std::uint32_t(l);
+            if (slot >= 0 && sample < settings_.ringedSamples && l < 64 &&
+                integrateByRings(l, *hit, frame.toWorld(reflectLocal(wo)), m.n,
+                                 rng.get2D(sample, d).x(), constant, prefix, prefixSize, slot, sink,
+                                 rays)) {
+                ringed |= std::uint64_t(1) << l;
+                continue;
+            }
             const auto ls = lights_.sample(l, hit->p, rng.get2D(sample, d));
             if (!ls || (!ls->delta && !settings_.mis)) continue;
             const Vec3d wi = frame.toLocal(ls->wi);
@@ -117,6 +128,7 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
             prefix[prefixSize++] = PathVertex{float(logCosAlpha(s->wi, wo)), std::uint32_t(slot)};
         }
         bsdfPdf = s->pdf;
+        ringedBefore = ringed;
         ray = Ray{offsetRayOrigin(hit->p, hit->ng, wiWorld), wiWorld};
 
         if (depth + 1 >= settings_.rrDepth) {
@@ -125,6 +137,33 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
             constant /= q;
         }
     }
+}
+
+template <typename Sink>
+bool PathIntegrator::integrateByRings(int light, const Hit& hit, const Vec3d& mirror, double n0,
+                                      double u, const Color3& constant, PathVertex* prefix,
+                                      int prefixSize, int slot, Sink& sink,
+                                      std::uint64_t& rays) const {
+    const std::optional<LightCone> cone = lights_.cone(light, hit.p);
+    if (!cone) return false;
+    const LightRings rings(mirror, hit.ns, hit.ng, *cone, LightRings::innermostFor(n0));
+    if (!(rings.nearest() < kRingReach)) return false;
+    const Color3 c = constant * lights_.radiance(light);
+    rings.forEachNode(u, [&](double logCos, double weight, auto draw) {
+        if (!nothingOccludes_) {
+            // Visibility along one direction of the ring, drawn by cos(theta_i): exact where
+            // nothing stands between, and unbiased where something does.
+            const Vec3d wi = draw();
+            const Vec3d origin = offsetRayOrigin(hit.p, hit.ng, wi);
+            const double reach =
+                (hit.p + lights_.distanceTo(light, hit.p, wi) * wi - origin).norm();
+            ++rays;
+            if (geometry_.occluded(Ray{origin, wi, reach * (1 - 1e-4)})) return;
+        }
+        prefix[prefixSize] = PathVertex{float(logCos), std::uint32_t(slot)};
+        sink.add(c * weight, std::span<const PathVertex>(prefix, prefixSize + 1));
+    });
+    return true;
 }
 
 }  // namespace phongfit

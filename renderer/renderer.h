@@ -66,6 +66,11 @@ struct RecordOptions {
     std::vector<PhongMaterial> theta0;  // per slot: the parameters to record at
     double defensive = 0.2;             // share of cosine sampling at fitted vertices
     std::string sampler = "mixture";    // at vertices on materials that are not fitted
+    // In a recording of direct light alone (max depth 2), in each pixel's first max(spp,
+    // directSpp) paths, spherical and parallelogram lights near a fitted vertex's mirror
+    // direction by rings (IntegratorSettings::ringedSamples); the extra paths, other depths, and
+    // every path when false, sample them as a render does.
+    bool lightRings = true;
     // Bytes the recording may take at its peak (0: no more than half the machine's memory, which
     // also caps a budget given): one forecast above it is refused before tracing.
     double memoryBudget = 0;

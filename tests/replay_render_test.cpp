@@ -85,7 +85,7 @@ Aggregates rendered(const Scene& scene, int spp, const std::vector<bool>& sphere
 // kRecordings independent recordings at the scene's sphere, replayed at theta1: the aggregates'
 // mean over the recordings, with its variance from their spread.
 Aggregates replayed(const Scene& scene, const PhongMaterial& theta1, int spp, int directSpp,
-                    const std::vector<bool>& sphere, std::size_t& terms) {
+                    const std::vector<bool>& sphere, std::size_t& terms, bool lightRings = true) {
     const Renderer renderer(scene);
     const int bsdf = scene.findBsdf("sphere");
     const PhongParams<double> theta{theta1.kd, theta1.ks, theta1.n};
@@ -95,6 +95,7 @@ Aggregates replayed(const Scene& scene, const PhongMaterial& theta1, int spp, in
         RecordOptions options;
         options.spp = spp;
         options.directSpp = directSpp;
+        options.lightRings = lightRings;
         options.seed = 1000 + std::uint64_t(k);
         options.fittedBsdfs = {bsdf};
         options.theta0 = {scene.bsdfs[bsdf].params};
@@ -142,6 +143,7 @@ TEST(ReplayAgainstRender, RecordedAtTheta0ReplayedAtTheta1MatchesTheRenderAtThet
     RecordOptions probe;
     probe.spp = 1;
     probe.directSpp = 64;
+    probe.lightRings = false;  // rings would give every pixel that sees the sphere far more terms
     probe.fittedBsdfs = {scene0.findBsdf("sphere")};
     probe.theta0 = {scene0.bsdfs[probe.fittedBsdfs[0]].params};
     const std::vector<bool> sphere = spherePixels(Renderer(scene0).record(probe).paths);
@@ -159,6 +161,30 @@ TEST(ReplayAgainstRender, RecordedAtTheta0ReplayedAtTheta1MatchesTheRenderAtThet
     const Aggregates stale =
         replayed(scene0, scene0.bsdfs[probe.fittedBsdfs[0]].params, 64, 0, sphere, uniform);
     EXPECT_GT(largestDeviation(stale, truth), 2 * kThreshold);
+}
+
+// Direct light integrated by rings about the mirror direction (light_rings.h) where a card hides
+// part of the light across the highlight: the rings' visibility rays keep the replay unbiased.
+TEST(ReplayAgainstRender, RingsUnderAPartlyHiddenLightMatchTheRender) {
+    const auto blocked = [](const PhongMaterial* m) {
+        Scene s = loadScene(PHONGFIT_TEST_SCENES_DIR "/sphere_quad_blocked.xml", {});
+        if (m) s.bsdfs[s.findBsdf("sphere")].params = *m;
+        return s;
+    };
+    const Scene scene0 = blocked(nullptr);  // n 300; the image is all sphere
+    const std::vector<bool> sphere(std::size_t(kSize) * kSize, true);
+    PhongMaterial theta1 = kTheta1;
+    theta1.n = 1000;
+    const Aggregates truth = rendered(blocked(&theta1), 4096, sphere);
+    std::size_t rings = 0, sampled = 0;
+    EXPECT_LT(largestDeviation(replayed(scene0, theta1, 16, 0, sphere, rings), truth), kThreshold);
+    EXPECT_LT(largestDeviation(replayed(scene0, theta1, 16, 0, sphere, sampled, false), truth),
+              kThreshold);
+    EXPECT_GT(rings, 3 * sampled) << "the pixels near the highlight were integrated by rings";
+    // The card matters: without it the image is brighter than the test can miss.
+    Scene open = blocked(&theta1);
+    open.shapes.erase(open.shapes.begin() + 1);
+    EXPECT_GT(largestDeviation(rendered(open, 4096, sphere), truth), 4 * kThreshold);
 }
 
 }  // namespace

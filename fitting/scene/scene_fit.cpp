@@ -273,6 +273,7 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
         o.seed = recording.seed * 1000003 + std::uint64_t(round) * 1009 + std::uint64_t(view);
         o.threads = recording.threads;
         o.maxDepth = v.maxDepth;
+        o.lightRings = recording.lightRings;
         o.fittedBsdfs = v.fittedBsdfs;
         o.theta0 = theta0;
         // What the fit may hold, less the state its solve will need (memory_plan.h).
@@ -293,6 +294,7 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
     nlohmann::json report = toJson(result, problem.materials);
     report["record_spp"] = recording.spp;
     report["seed"] = recording.seed;
+    report["area_lights"] = recording.lightRings ? "rings" : "sampled";
     for (const SceneView& v : problem.views) {
         report["views"].push_back({{"scene", v.scenePath},
                                    {"image", v.imagePath},

@@ -76,6 +76,9 @@ struct SceneRecording {
     // average, shared by the paths' importance to the estimate (path_importance.h), at most
     // kMostExtraPaths in a pixel. 0: spp and directSpp only, as in the first round.
     int adaptiveSpp = 0;
+    // Spherical and parallelogram lights near a fitted vertex's mirror direction by rings
+    // (RecordOptions::lightRings); false: sampled alone.
+    bool lightRings = true;
 };
 
 // Reads and checks every input. Throws Error naming the file and what is allowed.

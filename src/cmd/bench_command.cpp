@@ -78,6 +78,8 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
                     "extra paths per pixel after the first round, as fit --adaptive-spp")
         ->check(CLI::Range(0, 4096))
         ->capture_default_str();
+    fit->add_flag("--sampled-area-lights", f->sampledAreaLights,
+                  "record area lights by sampling alone, as fit --sampled-area-lights");
     fit->add_option("--precision", f->precision,
                     "target relative standard error of every free parameter, as fit --precision")
         ->check(CLI::Range(0.0, 0.5))
@@ -104,7 +106,7 @@ void addBenchCommand(CLI::App& app, bool parseOnly) {
             for (const char* option :
                  {"dataset", "--output", "--shard", "--spp-per-round", "--start-kd", "--start-ks",
                   "--start-n", "--start-n-factor", "--rounds", "--adaptive-spp", "--precision",
-                  "--time-budget", "--fail-threshold"})
+                  "--sampled-area-lights", "--time-budget", "--fail-threshold"})
                 if (fit->count(option) > 0)
                     throw Error(fmt::format(
                         "--merge DIR takes no {}: the run's settings are in DIR/bench_run.json",

@@ -37,6 +37,7 @@ struct FitCli {
     double timeBudget = 0, precision = kDefaultPrecision, maxMemory = 0;
     int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
     bool fitExposure = false, ignoreNonFinite = false, keepIndirect = false;
+    bool sampledAreaLights = false;
     std::uint64_t seed = 0;
     // Capture fits.
     std::string capture, lights, holdout, albedo = "uniform", intensities = "auto";
@@ -95,7 +96,8 @@ void runSceneFit(const FitCli& a) {
     if (!a.ks.empty()) in.ks = parseColorOption(a.ks, "--ks");
     in.n = a.n;
     const SceneFitProblem problem = loadSceneFit(in);
-    const SceneRecording recording{a.spp, a.directSpp, a.seed, a.threads, a.adaptiveSpp};
+    const SceneRecording recording{a.spp,     a.directSpp,   a.seed,
+                                   a.threads, a.adaptiveSpp, !a.sampledAreaLights};
     if (!a.quiet)
         options.onRound = [&](const FitRound& r) { printRound(r, problem, a.fitExposure); };
     const FitResult result = fitScene(problem, recording, options);
@@ -307,6 +309,10 @@ void addFitCommand(CLI::App& app) {
         ->capture_default_str();
     scene->add_option("--rounds", a->rounds, "at most this many record-and-solve rounds")
         ->check(CLI::Range(1, 100));
+    scene->add_flag("--sampled-area-lights", a->sampledAreaLights,
+                    "record spherical and rectangular lights by sampling alone, as renders do, "
+                    "instead of integrating them by rings about the mirror direction where a "
+                    "lobe can reach them (for comparisons)");
     scene->add_flag("--fit-exposure", a->fitExposure,
                     "also fit an unknown global scale of the images (observed = s * rendered)");
     scene->add_flag("--keep-indirect-pixels", a->keepIndirect,
