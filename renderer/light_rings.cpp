@@ -3,6 +3,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 
+#include "warp.h"
+
 namespace phongfit {
 
 namespace detail {
@@ -45,16 +47,13 @@ double angleBetween(const Vec3d& a, const Vec3d& b) {
 
 LightRings::LightRings(const Vec3d& r, const Vec3d& ns, const Vec3d& ng, const LightCone& cone,
                        double innermost)
-    : r_(r), ns_(ns), innermost_(innermost) {
-    const Frame<double> frame(r);
-    e1_ = frame.s;
-    e2_ = frame.t;
+    : frame_(r), ns_(ns), innermost_(innermost) {
     std::array<Vec3d, 6> normals;
     std::array<double, 6> offsets;
     auto add = [&](const Vec3d& m, double offset) {
         normals[constraintCount_] = m;
         offsets[constraintCount_] = offset;
-        constraints_[constraintCount_++] = {r_.dot(m), e1_.dot(m), e2_.dot(m), offset};
+        constraints_[constraintCount_++] = {r.dot(m), frame_.s.dot(m), frame_.t.dot(m), offset};
     };
     for (int k = 0; k < cone.planes; ++k) add(cone.normals[k], cone.offsets[k]);
     add(ns, 0);
@@ -67,7 +66,7 @@ LightRings::LightRings(const Vec3d& r, const Vec3d& ns, const Vec3d& ng, const L
     cand[n++] = kPi / 2;
     for (int i = 0; i < constraintCount_; ++i) {
         const double rho = std::acos(std::clamp(offsets[i], -1.0, 1.0));
-        const double gamma = angleBetween(r_, normals[i]);
+        const double gamma = angleBetween(r, normals[i]);
         cand[n++] = std::abs(gamma - rho);
         cand[n++] = gamma + rho;
     }
@@ -87,7 +86,7 @@ LightRings::LightRings(const Vec3d& r, const Vec3d& ns, const Vec3d& ng, const L
                 bool inside = true;
                 for (int k = 0; k < constraintCount_; ++k)
                     if (k != i && k != j && normals[k].dot(w) < offsets[k] - 1e-9) inside = false;
-                if (inside) cand[n++] = angleBetween(r_, w);
+                if (inside) cand[n++] = angleBetween(r, w);
             }
         }
     std::sort(cand.begin(), cand.begin() + n);
@@ -133,31 +132,23 @@ LightRings::Ring LightRings::ring(double alpha) const {
         rg.arcs = kept;
         rg.arcCount = count;
     }
-    const double c0 = rg.cosAlpha * r_.dot(ns_);
-    const double c1 = rg.sinAlpha * e1_.dot(ns_), c2 = rg.sinAlpha * e2_.dot(ns_);
-    for (int i = 0; i < rg.arcCount; ++i) {
-        const auto [p, q] = rg.arcs[i];
-        rg.integral +=
-            c0 * (q - p) + c1 * (std::sin(q) - std::sin(p)) - c2 * (std::cos(q) - std::cos(p));
-    }
+    rg.c0 = rg.cosAlpha * frame_.n.dot(ns_);
+    rg.c1 = rg.sinAlpha * frame_.s.dot(ns_);
+    rg.c2 = rg.sinAlpha * frame_.t.dot(ns_);
+    for (int i = 0; i < rg.arcCount; ++i)
+        rg.integral += rg.cosIntegral(rg.arcs[i][0], rg.arcs[i][1]);
     return rg;
 }
 
 Vec3d LightRings::direction(const Ring& ring, double phi) const {
-    return ring.cosAlpha * r_ + ring.sinAlpha * (std::cos(phi) * e1_ + std::sin(phi) * e2_);
+    return frame_.toWorld(sphericalDirection(ring.sinAlpha, ring.cosAlpha, phi));
 }
 
 double LightRings::azimuthAt(const Ring& ring, double t) const {
-    const double c0 = ring.cosAlpha * r_.dot(ns_);
-    const double c1 = ring.sinAlpha * e1_.dot(ns_), c2 = ring.sinAlpha * e2_.dot(ns_);
-    auto cumulative = [&](double p, double phi) {
-        return c0 * (phi - p) + c1 * (std::sin(phi) - std::sin(p)) -
-               c2 * (std::cos(phi) - std::cos(p));
-    };
     double rest = std::clamp(t, 0.0, 1.0) * ring.integral;
     for (int i = 0; i < ring.arcCount; ++i) {
         const auto [p, q] = ring.arcs[i];
-        const double whole = cumulative(p, q);
+        const double whole = ring.cosIntegral(p, q);
         if (rest > whole && i + 1 < ring.arcCount) {
             rest -= whole;
             continue;
@@ -165,12 +156,12 @@ double LightRings::azimuthAt(const Ring& ring, double t) const {
         // Newton on the monotone cumulative, kept inside a shrinking bracket.
         double lo = p, hi = q, phi = whole > 0 ? p + (q - p) * std::min(rest / whole, 1.0) : p;
         for (int it = 0; it < 60 && hi - lo > 1e-13; ++it) {
-            const double miss = cumulative(p, phi) - rest;
+            const double miss = ring.cosIntegral(p, phi) - rest;
             if (miss > 0)
                 hi = phi;
             else
                 lo = phi;
-            const double slope = c0 + c1 * std::cos(phi) + c2 * std::sin(phi);
+            const double slope = ring.c0 + ring.c1 * std::cos(phi) + ring.c2 * std::sin(phi);
             const double next = slope > 0 ? phi - miss / slope : 0.5 * (lo + hi);
             phi = next > lo && next < hi ? next : 0.5 * (lo + hi);
             if (std::abs(miss) <= 1e-14 * whole) break;

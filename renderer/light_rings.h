@@ -52,7 +52,15 @@ public:
         double cosAlpha, sinAlpha;
         std::array<std::array<double, 2>, kMaxArcs> arcs;  // azimuth intervals inside the light
         int arcCount = 0;
+        // cos(theta_i) = c0 + c1 cos(phi) + c2 sin(phi) along the ring
+        double c0 = 0, c1 = 0, c2 = 0;
         double integral = 0;  // of cos(theta_i) over the arcs
+
+        // The integral of cos(theta_i) over azimuths [p, q].
+        double cosIntegral(double p, double q) const {
+            return c0 * (q - p) + c1 * (std::sin(q) - std::sin(p)) -
+                   c2 * (std::cos(q) - std::cos(p));
+        }
     };
     Ring ring(double alpha) const;
     // The direction at azimuth phi on a ring.
@@ -71,7 +79,8 @@ private:
         double a, b1, b2;
         double offset;
     };
-    Vec3d r_, e1_, e2_, ns_;
+    Frame<double> frame_;  // about r
+    Vec3d ns_;
     std::array<Constraint, 6> constraints_;
     int constraintCount_ = 0;
     std::array<double, 64> cuts_;  // ring angles where the arcs change shape, ascending

@@ -24,6 +24,9 @@ PathIntegrator::PathIntegrator(const Scene& scene, const EmbreeScene& geometry,
                            scene.shapes, [](const ShapeDesc& s) { return !s.areaRadiance; }) == 1 &&
                        std::ranges::count_if(scene.shapes, [](const ShapeDesc& s) {
                            return !s.areaRadiance && s.type == ShapeDesc::Type::Sphere;
-                       }) == 1) {}
+                       }) == 1) {
+    for (std::size_t s = 0; s < scene.shapes.size(); ++s)
+        areaLights_ += lights.lightOfShape(int(s)) >= 0;
+}
 
 }  // namespace phongfit

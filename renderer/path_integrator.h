@@ -73,6 +73,7 @@ private:
     // One sphere and at most one emitting shape: no light can be hidden from a point on the
     // sphere (its own horizon aside), so the rings need no visibility rays.
     bool nothingOccludes_;
+    int areaLights_ = 0;  // lights on shapes
 };
 
 }  // namespace phongfit

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 
 namespace phongfit {
 
@@ -73,8 +74,9 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
         // light sampling alone covers every emitter and does best: the BRDF-sampled ray, which
         // could only find emission, is not traced. An environment keeps MIS: cosine sampling is
         // what lights a diffuse surface under a sky (docs/design/sampling.md).
-        const bool lightSamplingOnly = maxDepth >= 0 && depth + 1 >= maxDepth && settings_.mis &&
-                                       slot < 0 && !(m.ks > 0).any() && lights_.environment() < 0;
+        const bool lastReflection = maxDepth >= 0 && depth + 1 >= maxDepth;
+        const bool lightSamplingOnly = lastReflection && settings_.mis && slot < 0 &&
+                                       !(m.ks > 0).any() && lights_.environment() < 0;
 
         // Next-event estimation on every light.
         std::uint64_t ringed = 0;
@@ -112,7 +114,12 @@ void PathIntegrator::trace(const Ray& cameraRay, const PixelSampler& rng, std::u
             }
         }
 
-        if (lightSamplingOnly) return;
+        // Nor is it where rings took every area light and no environment shines: it could only
+        // find emission they already counted.
+        if (lightSamplingOnly ||
+            (lastReflection && ringed != 0 && std::popcount(ringed) == areaLights_ &&
+             lights_.environment() < 0))
+            return;
 
         // Continue the path by sampling the BRDF.
         const auto s = sampler.sample(m, wo, rng.get1D(sample, dim), rng.get2D(sample, dim + 1));
