@@ -126,6 +126,17 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
                                 image.width, image.height, v.scenePath, film.width, film.height));
     observe(v, image, in, mask);
     v.renderer = std::make_unique<Renderer>(std::move(scene));
+    // Rings take spheres and parallelograms where the recording is direct light alone
+    // (Renderer::record).
+    const Scene& built = v.renderer->scene();
+    const auto ringed = [](const ShapeDesc& s) {
+        return s.areaRadiance &&
+               (s.type == ShapeDesc::Type::Sphere || s.type == ShapeDesc::Type::Rectangle);
+    };
+    v.areaLights = std::any_of(built.shapes.begin(), built.shapes.end(),
+                               [](const ShapeDesc& s) { return bool(s.areaRadiance); });
+    v.ringedAreaLights = v.renderer->effectiveMaxDepth(v.maxDepth) == 2 &&
+                         std::any_of(built.shapes.begin(), built.shapes.end(), ringed);
     const std::vector<int> seen = v.renderer->bsdfSeen(0);
     v.direct = seesAny(seen, v.fittedBsdfs);
     v.slotSeen.assign(v.fittedBsdfs.size(), false);
@@ -294,10 +305,21 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
     nlohmann::json report = toJson(result, problem.materials);
     report["record_spp"] = recording.spp;
     report["seed"] = recording.seed;
-    report["area_lights"] = recording.lightRings ? "rings" : "sampled";
+    // Rings only where a view records direct light alone (Renderer::record).
+    const auto areaLights = [&](const SceneView& v) {
+        return recording.lightRings && v.ringedAreaLights ? "rings"
+               : v.areaLights                             ? "sampled"
+                                                          : "none";
+    };
+    const auto lights = [&](const char* how) {
+        return std::any_of(problem.views.begin(), problem.views.end(),
+                           [&](const SceneView& v) { return areaLights(v) == std::string(how); });
+    };
+    report["area_lights"] = lights("rings") ? "rings" : lights("sampled") ? "sampled" : "none";
     for (const SceneView& v : problem.views) {
         report["views"].push_back({{"scene", v.scenePath},
                                    {"image", v.imagePath},
+                                   {"area_lights", areaLights(v)},
                                    {"max_depth", v.renderer->effectiveMaxDepth(v.maxDepth)},
                                    {"left_out", v.depthNote},
                                    {"pixels_clipped", v.clipped},

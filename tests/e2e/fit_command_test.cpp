@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -106,12 +107,14 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
 
 // One sphere under area and environment light needs direct light only when no other surface can
 // send light back to it: the area light of sphere_sharp_area.xml is black, that of sphere_quad.xml
-// has Mitsuba's default diffuse surface, which reflects the sphere's light back onto it.
+// has Mitsuba's default diffuse surface, which reflects the sphere's light back onto it. Both
+// record direct light alone (the second by its "direct" integrator), so rings integrate their
+// lights, and fit.json says so (the demo's Cornell box samples its light).
 TEST_F(FitCommand, LeavesOutIndirectLightOnlyWhereNothingElseReflects) {
-    const std::vector<std::pair<std::string, std::string>> cases = {
-        {"sphere_sharp_area.xml", "left out: indirect bounces (one convex object"},
-        {"sphere_quad.xml", "left out: nothing (path tracing"}};
-    for (const auto& [scene, expected] : cases) {
+    const std::vector<std::array<std::string, 3>> cases = {
+        {"sphere_sharp_area.xml", "left out: indirect bounces (one convex object", "rings"},
+        {"sphere_quad.xml", "left out: nothing (path tracing", "rings"}};
+    for (const auto& [scene, expected, areaLights] : cases) {
         const std::string file = kScenes + "/" + scene, image = path(scene + ".exr");
         const std::vector<std::string> lobe = {"-D", "n=30", "-D", "spp=16"};
         std::vector<std::string> args = {"render", file, "-o", image, "--quiet"};
@@ -123,6 +126,9 @@ TEST_F(FitCommand, LeavesOutIndirectLightOnlyWhereNothingElseReflects) {
         const auto r = run(args);
         ASSERT_EQ(r.exitCode, 0) << r.err;
         EXPECT_NE(r.out.find(expected), std::string::npos) << scene << ":\n" << r.out;
+        const auto report = nlohmann::json::parse(std::ifstream(path(scene + "_fit/fit.json")));
+        EXPECT_EQ(report["area_lights"], areaLights) << scene;
+        EXPECT_EQ(report["views"][0]["area_lights"], areaLights) << scene;
     }
 }
 
@@ -139,6 +145,7 @@ TEST_F(FitCommand, TimeBudgetStopsTheRoundsAndSaysSo) {
     EXPECT_FALSE(report["converged"].get<bool>());
     EXPECT_FALSE(report["interrupted"].get<bool>());
     EXPECT_EQ(report["rounds"].size(), 1u);
+    EXPECT_EQ(report["area_lights"], "none");  // a point light
 
     // One round allowed and not enough: the report names the rounds, not the budget.
     const auto once =
@@ -215,6 +222,8 @@ TEST_F(FitCommand, DemoRendersFitsBackAndPrintsTheErrors) {
         EXPECT_NEAR(m["ks"][c].get<double>(), 0.2, 0.05 * 0.2);
     }
     EXPECT_NEAR(m["n"].get<double>(), 30, 0.1 * 30);
+    // Path traced: the walls reflect, and the light is sampled.
+    EXPECT_EQ(report["area_lights"], "sampled");
     // A 16-spp image holds n to 1.3%, short of the default 1%, whatever the paths: the rounds
     // stop at its noise floor once the paths have grown kMostPathGrowth (16) times, and no further.
     EXPECT_EQ(report["stop_reason"], "noise floor");
