@@ -116,6 +116,8 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
         v.depthNote =
             "indirect bounces (one convex object, and emitters that reflect nothing: direct "
             "light is exact, depth 2)";
+    } else if (scene.integrator.type == "direct") {
+        v.depthNote = "nothing (the scene's integrator is \"direct\": depth 2)";
     } else {
         v.depthNote = "nothing (path tracing at the scene's depth)";
     }

@@ -107,13 +107,13 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
 
 // One sphere under area and environment light needs direct light only when no other surface can
 // send light back to it: the area light of sphere_sharp_area.xml is black, that of sphere_quad.xml
-// has Mitsuba's default diffuse surface, which reflects the sphere's light back onto it. Both
-// record direct light alone (the second by its "direct" integrator), so rings integrate their
-// lights, and fit.json says so (the demo's Cornell box samples its light).
+// has Mitsuba's default diffuse surface, which reflects the sphere's light back onto it, but the
+// scene's own integrator asks for direct light alone. Rings integrate both lights, and fit.json
+// says so (the demo's Cornell box samples its light).
 TEST_F(FitCommand, LeavesOutIndirectLightOnlyWhereNothingElseReflects) {
     const std::vector<std::array<std::string, 3>> cases = {
         {"sphere_sharp_area.xml", "left out: indirect bounces (one convex object", "rings"},
-        {"sphere_quad.xml", "left out: nothing (path tracing", "rings"}};
+        {"sphere_quad.xml", "left out: nothing (the scene's integrator is \"direct\"", "rings"}};
     for (const auto& [scene, expected, areaLights] : cases) {
         const std::string file = kScenes + "/" + scene, image = path(scene + ".exr");
         const std::vector<std::string> lobe = {"-D", "n=30", "-D", "spp=16"};
