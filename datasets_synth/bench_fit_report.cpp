@@ -27,6 +27,9 @@ std::string startText(const Color3& c) {
                                         : fmt::format("{:g},{:g},{:g}", c[0], c[1], c[2]);
 }
 
+// Whether the sample's truth has a specular lobe: n has a true value to err from only then.
+bool hasLobe(const FitRow& r) { return (r.sample->truth.ks > 0).any(); }
+
 std::string csvField(const std::string& s) {
     if (s.find_first_of(",\"\n") == std::string::npos) return s;
     std::string quoted = "\"";
@@ -115,7 +118,7 @@ SummaryRow summarize(int spp, const std::string& group, const std::vector<const 
         s.passed += r->verdict.pass;
         kd.push_back(r->errors.kd);
         ks.push_back(r->errors.ks);
-        n.push_back(r->errors.n);
+        if (hasLobe(*r)) n.push_back(r->errors.n);
         rounds.push_back(r->rounds);
     }
     s.kdMedian = quantile(kd, 0.5);
@@ -314,6 +317,7 @@ cv::Mat errorVsTimePlot(const std::vector<FitRow>& rows, const std::vector<int>&
                 const RoundPoint& p = r.history[std::min(k, r.history.size() - 1)];
                 t.push_back(p.seconds);
                 for (int c = 0; c < 3; ++c) {
+                    if (c == 2 && !hasLobe(r)) continue;
                     e[c].push_back(component(p.errors, c));
                     sd[c].push_back(component(p.stds, c));
                 }
@@ -321,6 +325,7 @@ cv::Mat errorVsTimePlot(const std::vector<FitRow>& rows, const std::vector<int>&
             if (t.empty()) continue;
             const double time = quantile(t, 0.5);
             for (int c = 0; c < 3; ++c) {
+                if (e[c].empty()) continue;
                 errors[c].points.emplace_back(time, std::max(quantile(e[c], 0.5), 1e-6));
                 stds[c].points.emplace_back(time, std::max(quantile(sd[c], 0.5), 1e-6));
             }
@@ -374,7 +379,9 @@ void writeBenchFitReport(const std::vector<FitRow>& rows, const BenchFitOptions&
     writeTextAtomically(dir / "summary.json", summary.dump(2) + "\n");
     const std::string definitions = fmt::format(
         "Relative errors: |x - x_true| / |x_true|, for kd and ks with |.| the RGB length "
-        "(absolute where the truth is 0). A fit fails when it throws, returns a non-finite value, "
+        "(absolute where the truth is 0); n's over the fits whose truth has a lobe (ks > 0), the "
+        "only ones where n has a true value. A fit fails when it throws, returns a non-finite "
+        "value, "
         "or the error of a parameter it did not hold exceeds {:g}; "
         "\"unconstrained\" counts fits that reported a parameter the image does not constrain; "
         "\"within 3 std\" those whose every parameter not held is within 3 of its reported "
