@@ -50,6 +50,11 @@ public:
     // The directions from p that meet area light `index`: a sphere seen from outside, or a
     // parallelogram seen from its front. None for other lights, which are sampled instead.
     std::optional<LightCone> cone(int index, const Vec3d& p) const;
+    // Whether light `index` has a cone at all (a sphere or a parallelogram): what rings integrate.
+    bool hasCone(int index) const {
+        return lights_[index].type == Light::Type::Sphere ||
+               lights_[index].type == Light::Type::Parallelogram;
+    }
     // Distance from p along the unit wi (a direction in the light's cone) to area light `index`.
     double distanceTo(int index, const Vec3d& p, const Vec3d& wi) const;
     // The radiance an area light emits (uniform over its front).

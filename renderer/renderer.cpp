@@ -69,6 +69,13 @@ int Renderer::effectiveMaxDepth(int requested) const {
     return scene_.integrator.type == "direct" ? 2 : scene_.integrator.maxDepth;
 }
 
+bool Renderer::recordsByRings(int requested) const {
+    if (effectiveMaxDepth(requested) != 2) return false;
+    for (int l = 0; l < lights_->size(); ++l)
+        if (lights_->hasCone(l)) return true;
+    return false;
+}
+
 TileLoop Renderer::tileLoop(const PathIntegrator& integrator, const FilmWindow& window,
                             std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed,
                             int threads, int samples) const {
@@ -142,7 +149,7 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     // under a 40-degree light then drifted to n 3.8e5 for 3000 (docs/design/fitter.md, "Area
     // lights by rings").
     const int maxDepth = effectiveMaxDepth(options.maxDepth);
-    const bool rings = options.lightRings && maxDepth == 2;
+    const bool rings = options.lightRings && recordsByRings(options.maxDepth);
     const PathIntegrator integrator(
         scene_, *geometry_, *lights_, materials, slots, *sampler, defensive,
         {maxDepth, scene_.integrator.rrDepth, true,

@@ -99,6 +99,10 @@ public:
     // The depth the options ask for, resolved against the scene's integrator.
     int effectiveMaxDepth(int requested) const;
 
+    // Whether a recording at `requested` depth integrates some area light by rings
+    // (RecordOptions::lightRings): direct light alone, and a light with a cone.
+    bool recordsByRings(int requested) const;
+
     // Per pixel of the film (row-major), the scene bsdf index of the shape the ray through the
     // pixel's centre first hits; -1 where it hits none.
     std::vector<int> bsdfSeen(int threads) const;

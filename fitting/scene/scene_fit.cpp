@@ -128,17 +128,6 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
                                 image.width, image.height, v.scenePath, film.width, film.height));
     observe(v, image, in, mask);
     v.renderer = std::make_unique<Renderer>(std::move(scene));
-    // Rings take spheres and parallelograms where the recording is direct light alone
-    // (Renderer::record).
-    const Scene& built = v.renderer->scene();
-    const auto ringed = [](const ShapeDesc& s) {
-        return s.areaRadiance &&
-               (s.type == ShapeDesc::Type::Sphere || s.type == ShapeDesc::Type::Rectangle);
-    };
-    v.areaLights = std::any_of(built.shapes.begin(), built.shapes.end(),
-                               [](const ShapeDesc& s) { return bool(s.areaRadiance); });
-    v.ringedAreaLights = v.renderer->effectiveMaxDepth(v.maxDepth) == 2 &&
-                         std::any_of(built.shapes.begin(), built.shapes.end(), ringed);
     const std::vector<int> seen = v.renderer->bsdfSeen(0);
     v.direct = seesAny(seen, v.fittedBsdfs);
     v.slotSeen.assign(v.fittedBsdfs.size(), false);
@@ -307,17 +296,21 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
     nlohmann::json report = toJson(result, problem.materials);
     report["record_spp"] = recording.spp;
     report["seed"] = recording.seed;
-    // Rings only where a view records direct light alone (Renderer::record).
+    const auto ringed = [&](const SceneView& v) {
+        return recording.lightRings && v.renderer->recordsByRings(v.maxDepth);
+    };
+    const auto emitting = [](const SceneView& v) {
+        const std::vector<ShapeDesc>& shapes = v.renderer->scene().shapes;
+        return std::any_of(shapes.begin(), shapes.end(),
+                           [](const ShapeDesc& s) { return bool(s.areaRadiance); });
+    };
     const auto areaLights = [&](const SceneView& v) {
-        return recording.lightRings && v.ringedAreaLights ? "rings"
-               : v.areaLights                             ? "sampled"
-                                                          : "none";
+        return ringed(v) ? "rings" : emitting(v) ? "sampled" : "none";
     };
-    const auto lights = [&](const char* how) {
-        return std::any_of(problem.views.begin(), problem.views.end(),
-                           [&](const SceneView& v) { return areaLights(v) == std::string(how); });
+    const auto any = [&](auto&& f) {
+        return std::any_of(problem.views.begin(), problem.views.end(), f);
     };
-    report["area_lights"] = lights("rings") ? "rings" : lights("sampled") ? "sampled" : "none";
+    report["area_lights"] = any(ringed) ? "rings" : any(emitting) ? "sampled" : "none";
     for (const SceneView& v : problem.views) {
         report["views"].push_back({{"scene", v.scenePath},
                                    {"image", v.imagePath},

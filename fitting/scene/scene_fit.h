@@ -47,9 +47,6 @@ struct SceneView {
     // Delta lights seen directly: no recorded direction depends on the estimate
     // (FitOptions::recordingFollowsEstimate).
     bool deltaLightsOnly = false;
-    // Some shape emits; and the recording is direct light alone, with an area light that rings
-    // integrate (a sphere or a parallelogram: SceneRecording::lightRings).
-    bool areaLights = false, ringedAreaLights = false;
     Observation observation;
     std::size_t clipped = 0, masked = 0, nonFinite = 0;
     // Per pixel: 1 where the ray through its centre first meets a fitted material
