@@ -22,6 +22,10 @@ inline constexpr double kLobeSignificance = 2;
 // the most significant of many lobe shapes is kept, and 2 standard errors are often reached
 // by the noise alone (a look-elsewhere effect; docs/design/fitter.md).
 inline constexpr double kLobeConfirmation = 3;
+// A lobe short of kLobeConfirmation whose n, held at its start, raises the images' squared error
+// by more than this many mean squared residuals (one parameter's chi-square at 5 standard errors)
+// is seen after all.
+inline constexpr double kSeenLobeCost = 25;
 
 // Indices of the parameters not yet `held` that are invisible or collinear with earlier ones.
 // Parameters are tried in index order (per slot kd, then ks, then log n), so of two parameters the

@@ -32,7 +32,9 @@ public:
 
     // At the rounds' final estimate: holds the exponents whose lobe falls short of
     // kLobeConfirmation (ks's standard errors at least `ksStdFloor`, per material and ks group, if
-    // given) and, if any, solves again into `out`. True if anything was held.
+    // given) and, if any, solves again into `out`, unless that raises the images' squared error
+    // (crossSquares) by more than kSeenLobeCost mean squared residuals: then the round's solution
+    // stands. True if anything was held.
     bool confirmLobes(RoundOutcome& out,
                       const std::vector<std::vector<double>>* ksStdFloor = nullptr);
 
@@ -47,6 +49,9 @@ private:
     Analysis solveInstrumental(RoundOutcome& out);
 
     Analysis analyse();
+    // The images' squared error at the present values, free of the recordings' noise: the cross
+    // products of the two sets (instrumental variables), else Analysis::squares.
+    double crossSquares();
     std::vector<std::vector<double>> naturalStd(const Eigen::MatrixXd& jacobian,
                                                 const Eigen::MatrixXd& scores) const;
     void account(RoundOutcome& out, const Minimized& m) const;
