@@ -188,6 +188,21 @@ TEST(SynthConfig, MatrixConfigHoldsEveryCell) {
     }
 }
 
+// The cells outside the matrix (README, "Outside the matrix") read: 4 scenes x 5 exponents x
+// 3 materials, one of them on kd + ks = 1.
+TEST(SynthConfig, OutsideConfigHoldsEveryCell) {
+    const SynthConfig config = loadSynthConfig(PHONGFIT_CONFIGS_DIR "/outside.json");
+    EXPECT_EQ(config.groups.size(), 4u);
+    EXPECT_EQ(config.totalSamples(), 60);
+    for (const GroupConfig& g : config.groups) {
+        ASSERT_TRUE(g.grid.has_value()) << g.name;
+        ASSERT_EQ(g.grid->materials.size(), 3u);
+        EXPECT_EQ(g.grid->n, (std::vector<double>{7, 150, 1500, 12000, 150000})) << g.name;
+        const Color3 albedo = g.grid->materials[0].kd + g.grid->materials[0].ks;
+        EXPECT_TRUE(((albedo - 1).abs() < 1e-12).all()) << g.name;
+    }
+}
+
 TEST_F(Synth, BakedSceneKeepsTheFileAndSetsTheDefaults) {
     const std::string in = kScenes + "/sphere_orbit.xml";
     const fs::path out = path("baked.xml");
