@@ -48,24 +48,26 @@ template <int P>
 bool RoundSolver<P>::confirmLobes(RoundOutcome& out,
                                   const std::vector<std::vector<double>>* ksStdFloor) {
     const ParameterState<P> unconfirmed = params_;
-    const double before = crossSquares(),
-                 meanSquare =
-                     analysis_.squares / (3.0 * double(objective_.pixels().seeingMaterial));
+    const double unconfirmedSquares = analysis_.squares;
     if (!holdUnseenExponents(analysis_, params_, kLobeConfirmation, ksStdFloor)) return false;
     solveHolding(out);
     // A lobe whose n, held at its start, fits the images far worse was seen after all: its ks's
     // standard error was the recordings' noise (replayed far from where they were recorded), not
     // the lobe's absence. The round's solution stands.
-    if (crossSquares() - before <= kSeenLobeCost * meanSquare) return true;
+    const double meanSquare =
+        unconfirmedSquares / (3.0 * double(objective_.pixels().seeingMaterial));
+    if (crossSquares(params_, analysis_.squares) - crossSquares(unconfirmed, unconfirmedSquares) <=
+        kSeenLobeCost * meanSquare)
+        return true;
     params_ = unconfirmed;
     solveHolding(out);
     return false;
 }
 
 template <int P>
-double RoundSolver<P>::crossSquares() {
-    if (!instrumental_) return analysis_.squares;
-    const std::vector<double> y = params_.naturalCoordinates();
+double RoundSolver<P>::crossSquares(const ParameterState<P>& at, double squares) {
+    if (!instrumental_) return squares;
+    const std::vector<double> y = at.naturalCoordinates();
     double sum = 0;
     objective_.leastSquaresSums(y.data(), leastSquaresWeights_, true, sum, nullptr, nullptr);
     return sum;

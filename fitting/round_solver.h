@@ -49,9 +49,9 @@ private:
     Analysis solveInstrumental(RoundOutcome& out);
 
     Analysis analyse();
-    // The images' squared error at the present values, free of the recordings' noise: the cross
-    // products of the two sets (instrumental variables), else Analysis::squares.
-    double crossSquares();
+    // The images' squared error at `at`, free of the recordings' noise: the cross products of the
+    // two sets (instrumental variables), else `squares` (Analysis::squares taken at `at`).
+    double crossSquares(const ParameterState<P>& at, double squares);
     std::vector<std::vector<double>> naturalStd(const Eigen::MatrixXd& jacobian,
                                                 const Eigen::MatrixXd& scores) const;
     void account(RoundOutcome& out, const Minimized& m) const;
