@@ -1,5 +1,6 @@
 #include "round_solver.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -47,19 +48,20 @@ RoundOutcome RoundSolver<P>::solve(const Estimate& theta) {
 template <int P>
 bool RoundSolver<P>::confirmLobes(RoundOutcome& out,
                                   const std::vector<std::vector<double>>* ksStdFloor) {
-    const ParameterState<P> unconfirmed = params_;
+    const FreeExponents unconfirmed{params_, out.naturalStd};
     const double unconfirmedSquares = analysis_.squares;
     if (!holdUnseenExponents(analysis_, params_, kLobeConfirmation, ksStdFloor)) return false;
-    solveHolding(out);
+    solveHolding(out, &unconfirmed);
     // A lobe whose n, held at its start, fits the images far worse was seen after all: its ks's
     // standard error was the recordings' noise (replayed far from where they were recorded), not
     // the lobe's absence. The round's solution stands.
     const double meanSquare =
         unconfirmedSquares / (3.0 * double(objective_.pixels().seeingMaterial));
-    if (crossSquares(params_, analysis_.squares) - crossSquares(unconfirmed, unconfirmedSquares) <=
+    if (crossSquares(params_, analysis_.squares) -
+            crossSquares(unconfirmed.params, unconfirmedSquares) <=
         kSeenLobeCost * meanSquare)
         return true;
-    params_ = unconfirmed;
+    params_ = unconfirmed.params;
     solveHolding(out);
     return false;
 }
@@ -74,12 +76,19 @@ double RoundSolver<P>::crossSquares(const ParameterState<P>& at, double squares)
 }
 
 template <int P>
-void RoundSolver<P>::solveHolding(RoundOutcome& out) {
+void RoundSolver<P>::solveHolding(RoundOutcome& out, const FreeExponents* free) {
+    using L = BlockLayout<P>;
     const UsedPixels& prep = objective_.pixels();
     do {
         analysis_ = instrumental_ ? solveInstrumental(out) : solveLeastSquares(out);
         // What the images leave unconstrained is decided at the solution, not on the way.
     } while (holdUnconstrained(analysis_, prep, params_));
+    for (int m = 0; free != nullptr && m < params_.materialCount(); ++m) {
+        if (!params_.held(m).n || free->params.held(m).n) continue;
+        for (int i = 0; i < L::kLogN; ++i)
+            if (!params_.isHeld(m, i))
+                out.naturalStd[m][i] = std::max(out.naturalStd[m][i], free->std[m][i]);
+    }
     if (options_.precision > 0)
         out.pathShare = recordingShare(objective_, at_, instrumental_ ? &instruments_ : nullptr,
                                        analysis_, params_.held());

@@ -39,9 +39,19 @@ public:
                       const std::vector<std::vector<double>>* ksStdFloor = nullptr);
 
 private:
+    // A solution with its exponents free: the parameters and their standard errors.
+    struct FreeExponents {
+        ParameterState<P> params;
+        std::vector<std::vector<double>> std;
+    };
+
     // The estimator's solves from the parameters' present values, holding what the images leave
-    // unconstrained and solving again until nothing more is held; fills `out`.
-    void solveHolding(RoundOutcome& out);
+    // unconstrained and solving again until nothing more is held; fills `out`. kd's and ks's
+    // standard errors with an exponent held are as if n were known: for an exponent held since
+    // `free` (lobe confirmation's), they are at least what they were with n free there. (Not for
+    // the rounds' own holds: at ks = 0, which they test, n free counts a trade-off only a lobe
+    // has; widened by it, 4 lobeless cells of the recovery matrix no longer converged.)
+    void solveHolding(RoundOutcome& out, const FreeExponents* free = nullptr);
 
     // The estimators (estimators.cpp): least squares, reweighted for a robust loss, and the
     // cross-product anchor followed by the instrumental-variables moments.

@@ -1277,6 +1277,33 @@ TEST(Fitter, LobeConfirmationLeavesALobeTheImagesShow) {
     }
 }
 
+// Lobe confirmation holding n: kd's and ks's standard errors with n held are as if n were known.
+// A weak broad lobe (ks 0.05, n 3, noisy recordings), held where it is, reports them at least as
+// they were with n free, which cover the truth (held as known, kd's did not: 3.1 standard errors
+// off in green).
+TEST(Fitter, HeldExponentLeavesKdAndKsAsUncertainAsWithNFree) {
+    const PathSet exact = makePaths(threeLights());
+    const std::vector<PathSet> a{noisy(exact, 1, 2)}, b{noisy(exact, 2, 2)};
+    const FitOptions options;
+    const std::vector<std::vector<double>> floor{{1.0, 1.0, 1.0}};
+    const PhongMaterial truth = material(Color3(0.5, 0.4, 0.3), Color3::Constant(0.05), 3);
+    const std::vector<Observation> obs{observe(exact, {truth})};
+    ParameterState<kRgbBlock> params({material(truth.kd, truth.ks, 300)}, false);
+    RoundSolver<kRgbBlock> solver(obs, a, b, params, options, 1, false);
+    RoundOutcome out = solver.solve({{truth}, 1.0});
+    const MaterialFit free = out.materials[0];
+    ASSERT_FALSE(free.isUnconstrained("n"));
+    ASSERT_TRUE(solver.confirmLobes(out, &floor));
+    const MaterialFit& m = out.materials[0];
+    EXPECT_TRUE(m.isUnconstrained("n"));
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_GE(m.kdStd[c], free.kdStd[c]) << c;
+        EXPECT_GE(m.ksStd[c], free.ksStd[c]) << c;
+        EXPECT_LT(std::abs(m.kd[c] - truth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
+        EXPECT_LT(std::abs(m.ks[c] - truth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
+    }
+}
+
 // A later round's scan of the broader side (scanBroaderExponents), on two noisy recordings of a
 // lobe far sharper than the truth's (n 30000 for 60, which no pixel's lobe then reaches): the
 // cross products pick the grid's exponent nearest the truth, 64 (kd and ks taking a step to fit
