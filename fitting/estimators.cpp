@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "convergence.h"
+#include "face_projection.h"
 #include "round_solver.h"
 #include "standard_errors.h"
 #include "uncertainty.h"
@@ -65,6 +66,22 @@ bool momentsDisagree(const Analysis& analysis, const Eigen::VectorXd& g,
 
 }  // namespace
 
+// A minimum over the box on kd + ks = 1, least squares' (or the cross products', `cross`), moved
+// to the unconstrained minimum's projection along the estimate's covariance (face_projection.h).
+template <int P>
+bool RoundSolver<P>::projectOntoFace(bool cross) {
+    if (!onEnergyFace(params_)) return false;
+    Eigen::VectorXd gradient;
+    Eigen::MatrixXd gram;
+    double squares = 0;
+    const std::vector<double> y = params_.naturalCoordinates();
+    objective_.leastSquaresSums(y.data(), leastSquaresWeights_, cross, squares, &gradient, &gram);
+    const Analysis there = analyse();
+    projectOntoEnergyFace(params_, gram, cross ? there.crossScores : there.leastSquaresScores,
+                          gradient);
+    return true;
+}
+
 // Least squares, or with a robust loss iteratively reweighted least squares: the first pass is
 // plain least squares (from a far start most of a highlight would look like outliers), each next
 // one weights the pixels by the loss at the last solution, until the solution stays put; the
@@ -79,9 +96,14 @@ Analysis RoundSolver<P>::solveLeastSquares(RoundOutcome& out) {
         Analysis analysis = analyse();
         out.naturalStd = naturalStd(analysis.jacobian, analysis.scores);
         if (!objective_.robust() || pass >= kMaxPasses || stopping() ||
-            (!weightPoint.empty() && withinTolerance<P>(weightPoint, params_.naturalBlocks(),
-                                                        noStd(params_.blockCount(), P), options_)))
+            (!weightPoint.empty() &&
+             withinTolerance<P>(weightPoint, params_.naturalBlocks(),
+                                noStd(params_.blockCount(), P), options_))) {
+            if (!projectOntoFace(false)) return analysis;
+            analysis = analyse();
+            out.naturalStd = naturalStd(analysis.jacobian, analysis.scores);
             return analysis;
+        }
         leastSquaresWeights_.assign(at_.weights[0].begin(), at_.weights[0].end());
         weightPoint = params_.naturalBlocks();
     }
@@ -115,6 +137,7 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         account(out,
                 minimizeLeastSquares(objective_, params_, leastSquaresWeights_, false, options_));
     }
+    projectOntoFace(cross);
     const std::vector<double> anchorX = params_.internal();
     Analysis analysis = analyse();
     const std::vector<std::vector<double>> anchorStd =
@@ -171,6 +194,8 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     }
 }
 
+template bool RoundSolver<kRgbBlock>::projectOntoFace(bool);
+template bool RoundSolver<kGreyBlock>::projectOntoFace(bool);
 template Analysis RoundSolver<kRgbBlock>::solveLeastSquares(RoundOutcome&);
 template Analysis RoundSolver<kGreyBlock>::solveLeastSquares(RoundOutcome&);
 template Analysis RoundSolver<kRgbBlock>::solveInstrumental(RoundOutcome&);

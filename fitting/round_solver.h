@@ -58,6 +58,8 @@ private:
     Analysis solveLeastSquares(RoundOutcome& out);
     Analysis solveInstrumental(RoundOutcome& out);
 
+    // Where the solution is on kd + ks = 1 (face_projection.h); true if it was.
+    bool projectOntoFace(bool cross);
     Analysis analyse();
     // The images' squared error at `at`, free of the recordings' noise: the cross products of the
     // two sets (instrumental variables), else `squares` (Analysis::squares taken at `at`).

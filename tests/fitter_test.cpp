@@ -1383,7 +1383,9 @@ TEST(ImageNoise, APixelThatHoldsTheLobeBringsItsNoiseIntoTheStandardErrors) {
     for (int c = 0; c < 3; ++c) {
         EXPECT_LT(std::abs(m.ks[c] - truth.ks[c]), 3 * m.ksStd[c]) << "ks " << c;
         EXPECT_LT(std::abs(m.kd[c] - truth.kd[c]), 3 * m.kdStd[c]) << "kd " << c;
-        EXPECT_GT(std::abs(m.ks[c] - truth.ks[c]), 3 * sandwich.ksStd[c]) << "ks " << c;
+        // The pixel's noise is what the round's sandwich misses: ks's standard error from the
+        // image alone is the larger (1.43 against 0.038).
+        EXPECT_GT(m.ksImageStd[c], sandwich.ksStd[c]) << "ks " << c;
         EXPECT_EQ(m.ksStd[c], std::max(m.ksImageStd[c], m.ksStd[c]));
     }
     EXPECT_LT(std::abs(m.n - truth.n), 3 * m.nStd);
