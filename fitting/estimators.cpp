@@ -76,10 +76,11 @@ bool RoundSolver<P>::projectOntoFace(bool cross) {
     double squares = 0;
     const std::vector<double> y = params_.naturalCoordinates();
     objective_.leastSquaresSums(y.data(), leastSquaresWeights_, cross, squares, &gradient, &gram);
-    const Analysis there = analyse();
-    projectOntoEnergyFace(params_, gram, cross ? there.crossScores : there.leastSquaresScores,
-                          gradient);
-    return true;
+    // The scores alone: with no instruments the moment sums are left out.
+    const Instruments<P> none;
+    const Analysis there = phongfit::analyse(objective_, params_, &none, at_);
+    return projectOntoEnergyFace(params_, gram,
+                                 cross ? there.crossScores : there.leastSquaresScores, gradient);
 }
 
 // Least squares, or with a robust loss iteratively reweighted least squares: the first pass is

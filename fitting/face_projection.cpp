@@ -38,10 +38,10 @@ bool onEnergyFace(const ParameterState<P>& params) {
 }
 
 template <int P>
-void projectOntoEnergyFace(ParameterState<P>& params, const Eigen::MatrixXd& gram,
+bool projectOntoEnergyFace(ParameterState<P>& params, const Eigen::MatrixXd& gram,
                            const Eigen::MatrixXd& scores, const Eigen::VectorXd& gradient) {
     const auto faces = energyFaces(params);
-    if (faces.empty()) return;
+    if (faces.empty()) return false;
     const std::vector<bool> held = params.heldFlags();
     const Eigen::MatrixXd inverse = freeInverse(gram, held);
     const Eigen::MatrixXd covariance = inverse * scores * inverse.transpose();
@@ -55,20 +55,21 @@ void projectOntoEnergyFace(ParameterState<P>& params, const Eigen::MatrixXd& gra
     for (Eigen::Index f = 0; f < k; ++f) a(f, faces[f].first) = a(f, faces[f].second) = 1;
     const Eigen::MatrixXd across = a * covariance * a.transpose();
     const Eigen::FullPivLU<Eigen::MatrixXd> lu(across);
-    if (!lu.isInvertible()) return;
+    if (!lu.isInvertible()) return false;
     const Eigen::VectorXd beyond = a * unconstrained - Eigen::VectorXd::Ones(k);
     const Eigen::VectorXd pull = lu.solve(beyond);
-    if (!(beyond.dot(pull) <= kFarBeyondFace)) return;
+    if (!(beyond.dot(pull) <= kFarBeyondFace)) return false;
     const Eigen::VectorXd projected = unconstrained - covariance * a.transpose() * pull;
-    if (!projected.allFinite()) return;
+    if (!projected.allFinite()) return false;
     for (int b = 0; b < params.materialCount(); ++b) params.setNatural(b, projected.data() + b * P);
+    return true;
 }
 
 template bool onEnergyFace<kRgbBlock>(const ParameterState<kRgbBlock>&);
 template bool onEnergyFace<kGreyBlock>(const ParameterState<kGreyBlock>&);
-template void projectOntoEnergyFace<kRgbBlock>(ParameterState<kRgbBlock>&, const Eigen::MatrixXd&,
+template bool projectOntoEnergyFace<kRgbBlock>(ParameterState<kRgbBlock>&, const Eigen::MatrixXd&,
                                                const Eigen::MatrixXd&, const Eigen::VectorXd&);
-template void projectOntoEnergyFace<kGreyBlock>(ParameterState<kGreyBlock>&, const Eigen::MatrixXd&,
+template bool projectOntoEnergyFace<kGreyBlock>(ParameterState<kGreyBlock>&, const Eigen::MatrixXd&,
                                                 const Eigen::MatrixXd&, const Eigen::VectorXd&);
 
 }  // namespace phongfit

@@ -20,9 +20,10 @@ bool onEnergyFace(const ParameterState<P>& params);
 // the box's minimum is, an estimate whose truth is on the face comes out biased along the face
 // (kd 3% low, 3 standard errors, on a probe-lit sphere at kd + ks = 1); along its covariance the
 // part of the noise that crosses the face is regressed out of the rest, which is then unbiased.
-// Left where it is when the step ends more than 5 standard errors beyond the face.
+// Left where it is when the step ends more than 5 standard errors beyond the face. True if it
+// moved.
 template <int P>
-void projectOntoEnergyFace(ParameterState<P>& params, const Eigen::MatrixXd& gram,
+bool projectOntoEnergyFace(ParameterState<P>& params, const Eigen::MatrixXd& gram,
                            const Eigen::MatrixXd& scores, const Eigen::VectorXd& gradient);
 
 }  // namespace phongfit

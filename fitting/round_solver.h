@@ -58,7 +58,7 @@ private:
     Analysis solveLeastSquares(RoundOutcome& out);
     Analysis solveInstrumental(RoundOutcome& out);
 
-    // Where the solution is on kd + ks = 1 (face_projection.h); true if it was.
+    // Where the solution is on kd + ks = 1 (face_projection.h); true if it moved.
     bool projectOntoFace(bool cross);
     Analysis analyse();
     // The images' squared error at `at`, free of the recordings' noise: the cross products of the

@@ -37,6 +37,7 @@ TEST(FaceProjection, RemovesTheBiasOfTheBoxMinimumAlongTheFace) {
     const Eigen::Matrix3d h = Eigen::Matrix3d::Identity() / (sigma * sigma);
     const Eigen::MatrixXd s = h * v * h;
     const Eigen::Vector3d a(1, 1, 0);  // the face: a . y = 1
+    const Eigen::Vector3d hInverseA = h.inverse() * a;
     const CounterRng rng(7, 0);
     Eigen::Vector3d boxSum = Eigen::Vector3d::Zero(), projectedSum = Eigen::Vector3d::Zero();
     Eigen::Vector3d projectedSquares = Eigen::Vector3d::Zero();
@@ -47,12 +48,11 @@ TEST(FaceProjection, RemovesTheBiasOfTheBoxMinimumAlongTheFace) {
         const double beyond = a.dot(unconstrained) - 1;
         if (beyond <= 0) continue;  // inside the box: its own minimum
         ++crossed;
-        const Eigen::Vector3d hInverseA = h.inverse() * a;
         const Eigen::Vector3d box = unconstrained - hInverseA * beyond / a.dot(hInverseA);
         ParameterState<P> params({{Color3::Constant(0.3), Color3::Constant(0.7), 100}}, false);
         params.setInternal({1.0, box[L::specular(0)], box[L::kLogN]});
         ASSERT_TRUE(onEnergyFace(params));
-        projectOntoEnergyFace(params, h, s, h * (box - unconstrained));
+        ASSERT_TRUE(projectOntoEnergyFace(params, h, s, h * (box - unconstrained)));
         const Eigen::Vector3d projected = params.natural(0);
         ASSERT_NEAR(projected[0] + projected[1], 1.0, 1e-12);
         boxSum += box - truth;
@@ -74,9 +74,29 @@ TEST(FaceProjection, LeavesAMinimumOffTheFaceWhereItIs) {
     ParameterState<P> params({{Color3::Constant(0.3), Color3::Constant(0.6), 100}}, false);
     EXPECT_FALSE(onEnergyFace(params));
     const std::vector<double> before = params.internal();
-    projectOntoEnergyFace(params, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(),
-                          Eigen::Vector3d(1, 1, 1));
+    EXPECT_FALSE(projectOntoEnergyFace(params, Eigen::Matrix3d::Identity(),
+                                       Eigen::Matrix3d::Identity(), Eigen::Vector3d(1, 1, 1)));
     EXPECT_EQ(params.internal(), before);
+}
+
+// A Gauss-Newton step that ends 7 standard errors beyond the face is no step within the noise
+// (a round recorded far from its solution): the box's minimum stands. One that ends 0.07 of them
+// beyond is taken.
+TEST(FaceProjection, DeclinesAStepFarBeyondTheFace) {
+    const double sigma = 0.01;
+    const Eigen::Matrix3d h = Eigen::Matrix3d::Identity() / (sigma * sigma);
+    for (const double step : {0.1, 0.001}) {
+        ParameterState<P> params({{Color3::Constant(0.3), Color3::Constant(0.7), 100}}, false);
+        params.setInternal({1.0, 0.7, std::log(100.0)});
+        ASSERT_TRUE(onEnergyFace(params));
+        const std::vector<double> before = params.internal();
+        const Eigen::Vector3d beyond(step, 0, step);
+        const bool moved = projectOntoEnergyFace(params, h, h, -h * beyond);
+        EXPECT_EQ(moved, step < 0.01) << step;
+        EXPECT_EQ(params.internal() == before, !moved) << step;
+        EXPECT_NEAR(params.natural(0)[L::diffuse(0)] + params.natural(0)[L::specular(0)], 1.0,
+                    1e-12);
+    }
 }
 
 }  // namespace
