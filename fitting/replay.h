@@ -72,15 +72,18 @@ Color<T> replayPixel(const PathSet& paths, std::size_t pixel, const PhongParams<
 
 // The variance of one path of the pixel at theta, each term taken as a path of its own (terms of
 // one camera path also covary; that is left out): N sum t^2 - (sum t)^2 over its terms t, each of
-// which holds 1 / N of its path, N the pixel's paths. An image rendered with independent samples
-// varies by this over its paths per pixel there.
+// which holds 1 / N of its path (its group's weight undone), N the pixel's paths. An image
+// rendered with independent samples varies by this over its paths per pixel there.
 inline Color3 replayPathVariance(const PathSet& paths, std::size_t pixel,
                                  const PhongMaterial* theta) {
     Color3 sum = Color3::Zero(), squares = Color3::Zero();
-    const std::uint32_t end = paths.pixelStart[pixel + 1];
-    for (std::uint32_t t = paths.pixelStart[pixel]; t < end; ++t) {
-        const Color3 x =
-            termBrdfs(paths, paths.terms[t], theta) * paths.terms[t].constant.cast<double>();
+    const std::uint32_t begin = paths.pixelStart[pixel], end = paths.pixelStart[pixel + 1];
+    const PathGroups groups = paths.groups.empty() ? PathGroups{} : paths.groups[pixel];
+    for (std::uint32_t t = begin; t < end; ++t) {
+        const double weight =
+            t - begin < groups.ringedTerms ? groups.ringedScale : groups.sampledScale;
+        const Color3 x = termBrdfs(paths, paths.terms[t], theta) *
+                         paths.terms[t].constant.cast<double>() / weight;
         sum += x;
         squares += x * x;
     }

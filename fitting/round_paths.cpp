@@ -7,7 +7,8 @@ std::size_t recordedBytes(const std::vector<PathSet>& sets) {
     for (const PathSet& p : sets)
         bytes += p.terms.size() * sizeof(PathTerm) + p.vertices.size() * sizeof(PathVertex) +
                  p.background.size() * sizeof(Color<float>) +
-                 (p.pixelStart.size() + p.pixelPaths.size()) * sizeof(std::uint32_t);
+                 (p.pixelStart.size() + p.pixelPaths.size()) * sizeof(std::uint32_t) +
+                 p.groups.size() * sizeof(PathGroups);
     return bytes;
 }
 

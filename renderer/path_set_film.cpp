@@ -30,28 +30,39 @@ std::vector<RecordRun> recordRuns(const Terms& terms) {
     return runs;
 }
 
+// The least weight either group of a pixel's paths gets (PathGroups): every path keeps a share,
+// so its weight can be undone (replayPathVariance).
+constexpr double kLeastGroupWeight = 1e-3;
+
+// How far the neighbours a pixel's group variances are pooled over may reach: 1 (3 x 3), then 2.
+constexpr int kMostPoolRadius = 2;
+
 }  // namespace
 
-PathSetFilm::PathSetFilm(int width, int height, std::vector<int> paths, std::size_t tiles)
+PathSetFilm::PathSetFilm(int width, int height, std::vector<int> paths, std::size_t tiles,
+                         std::uint32_t ringed)
     : width_(width),
       height_(height),
       paths_(std::move(paths)),
       background_(paths_.size(), Color3::Zero()),
       kept_(paths_.size(), 0),
+      ringed_(ringed),
+      ringedParts_(ringed > 0 ? paths_.size() : 0),
       tiles_(tiles) {}
 
-PathSetFilm::Sample::Sample(PathSetFilm& film, std::size_t tile, std::uint32_t pixel)
+PathSetFilm::Sample::Sample(PathSetFilm& film, std::size_t tile, std::uint32_t pixel, int sample)
     : film_(film),
       record_(film.tiles_[tile]),
       pixel_(pixel),
+      ringed_(std::uint32_t(sample) < film.ringed_),
       scale_(1.0 / film.paths_[pixel]),
       termsBefore_(record_.terms.size()),
       verticesBefore_(record_.vertices.size()),
-      backgroundBefore_(film.background_[pixel]) {}
+      backgroundBefore_(ringed_ ? film.ringedParts_[pixel].background : film.background_[pixel]) {}
 
 void PathSetFilm::Sample::add(const Color3& c, std::span<const PathVertex> vertices) {
     if (vertices.empty()) {
-        film_.background_[pixel_] += c * scale_;
+        (ringed_ ? film_.ringedParts_[pixel_].background : film_.background_[pixel_]) += c * scale_;
         return;
     }
     record_.terms.push_back(PathTerm{pixel_, std::uint32_t(record_.vertices.size()),
@@ -59,10 +70,23 @@ void PathSetFilm::Sample::add(const Color3& c, std::span<const PathVertex> verti
     record_.vertices.append(vertices);
 }
 
+void PathSetFilm::Sample::keep(const Color3& value) {
+    ++film_.kept_[pixel_];
+    if (film_.ringed_ == 0) return;
+    RingedPart& part = film_.ringedParts_[pixel_];
+    GroupSums& group = ringed_ ? part.ringed : part.sampled;
+    const double y = value.mean();
+    ++group.kept;
+    group.sum += y;
+    group.squares += y * y;
+    if (ringed_) part.terms += std::uint32_t(record_.terms.size() - termsBefore_);
+}
+
 void PathSetFilm::Sample::drop() {
     record_.terms.truncate(termsBefore_);
     record_.vertices.truncate(verticesBefore_);
-    film_.background_[pixel_] = backgroundBefore_;
+    (ringed_ ? film_.ringedParts_[pixel_].background : film_.background_[pixel_]) =
+        backgroundBefore_;
 }
 
 double PathSetFilm::rescale(std::size_t p) const {
@@ -70,8 +94,60 @@ double PathSetFilm::rescale(std::size_t p) const {
                                                                 : 1.0;
 }
 
+std::vector<std::array<double, 2>> PathSetFilm::groupFactors(PathSet& set) const {
+    const std::size_t pixels = paths_.size();
+    std::vector<std::array<double, 2>> factors(pixels);
+    for (std::size_t p = 0; p < pixels; ++p) factors[p] = {rescale(p), rescale(p)};
+    if (ringed_ == 0) return factors;
+    // A group's variance a path, pooled over the pixel's neighbours within `radius` that kept
+    // two of its samples; negative where none did.
+    const auto pooled = [&](int x, int y, int radius, const GroupSums RingedPart::*group) {
+        double squares = 0, freedom = 0;
+        for (int v = std::max(y - radius, 0); v <= std::min(y + radius, height_ - 1); ++v)
+            for (int u = std::max(x - radius, 0); u <= std::min(x + radius, width_ - 1); ++u) {
+                const GroupSums& g =
+                    ringedParts_[std::size_t(v) * std::size_t(width_) + std::size_t(u)].*group;
+                if ((u == x && v == y) || g.kept < 2) continue;
+                squares += std::max(g.squares - g.sum * g.sum / g.kept, 0.0);
+                freedom += g.kept - 1;
+            }
+        return freedom > 0 ? squares / freedom : -1.0;
+    };
+    const auto variance = [&](int x, int y, const GroupSums RingedPart::*group) {
+        double v = -1;
+        for (int radius = 1; radius <= kMostPoolRadius && v < 0; ++radius)
+            v = pooled(x, y, radius, group);
+        return v;
+    };
+    bool weighted = false;
+    set.groups.assign(pixels, PathGroups{});
+    for (std::size_t p = 0; p < pixels; ++p) {
+        const RingedPart& part = ringedParts_[p];
+        set.groups[p].ringedTerms = part.terms;
+        if (part.ringed.kept == 0 || part.sampled.kept == 0) continue;
+        const int x = int(p % std::size_t(width_)), y = int(p / std::size_t(width_));
+        const double ringedVariance = variance(x, y, &RingedPart::ringed),
+                     sampledVariance = variance(x, y, &RingedPart::sampled);
+        // The ringed mean's weight, by the inverse of the variances of the two means; where a
+        // variance is not known, the ringed mean's (the sampled paths are the ones whose noise
+        // can be far larger).
+        const double a = ringedVariance / part.ringed.kept, b = sampledVariance / part.sampled.kept;
+        const double w = ringedVariance < 0 || sampledVariance < 0 || !(a + b > 0)
+                             ? 1 - kLeastGroupWeight
+                             : std::clamp(b / (a + b), kLeastGroupWeight, 1 - kLeastGroupWeight);
+        const double kept = double(kept_[p]);
+        factors[p] = {paths_[p] * w / part.ringed.kept, paths_[p] * (1 - w) / part.sampled.kept};
+        set.groups[p].ringedScale = float(w * kept / part.ringed.kept);
+        set.groups[p].sampledScale = float((1 - w) * kept / part.sampled.kept);
+        weighted = true;
+    }
+    if (!weighted) set.groups.clear();
+    return factors;
+}
+
 void PathSetFilm::copyRecord(TileRecord& record, PathSet& set, std::vector<std::uint32_t>& nextTerm,
                              std::vector<std::uint32_t>& nextVertex,
+                             const std::vector<std::array<double, 2>>& factors,
                              const std::function<void(std::size_t)>& handedBack) const {
     const std::size_t page = detail::pageBytes();
     const std::size_t termsAPage = page / sizeof(PathTerm) + 1;
@@ -82,10 +158,12 @@ void PathSetFilm::copyRecord(TileRecord& record, PathSet& set, std::vector<std::
         for (const RecordRun& run : runs)
             if (run.next < run.end) p = std::min(p, record.terms[run.next].pixel);
         if (p == std::numeric_limits<std::uint32_t>::max()) return;
-        const double scale = rescale(p);
+        const std::uint32_t ringedEnd =
+            set.pixelStart[p] + (set.groups.empty() ? 0 : set.groups[p].ringedTerms);
         for (RecordRun& run : runs) {
             for (; run.next < run.end && record.terms[run.next].pixel == p; ++run.next) {
                 PathTerm term = record.terms[run.next];
+                const double scale = factors[p][nextTerm[p] < ringedEnd ? 0 : 1];
                 for (std::uint32_t v = 0; v < term.vertexCount; ++v)
                     set.vertices[nextVertex[p] + v] = record.vertices[term.firstVertex + v];
                 run.nextVertex = term.firstVertex + term.vertexCount;
@@ -116,10 +194,15 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.height = height_;
     set.spp = spp;
     set.slots = slots;
+    const std::vector<std::array<double, 2>> factors = groupFactors(set);
     set.background.resize(pixels);
-    for (std::size_t p = 0; p < pixels; ++p)
-        set.background[p] = (background_[p] * rescale(p)).cast<float>();
+    for (std::size_t p = 0; p < pixels; ++p) {
+        Color3 background = background_[p] * factors[p][1];
+        if (ringed_ > 0) background = ringedParts_[p].background * factors[p][0] + background;
+        set.background[p] = background.cast<float>();
+    }
     background_ = {};
+    ringedParts_ = {};
     if (std::any_of(kept_.begin(), kept_.end(),
                     [&](std::uint32_t k) { return k != std::uint32_t(spp); }))
         set.pixelPaths = kept_;
@@ -157,7 +240,7 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
         }
     };
     for (TileRecord& record : tiles_) {
-        copyRecord(record, set, nextTerm, nextVertex, handedBack);
+        copyRecord(record, set, nextTerm, nextVertex, factors, handedBack);
         handedBack(record.terms.releaseBefore(std::size_t(-1)) +
                    record.vertices.releaseBefore(std::size_t(-1)));
     }
@@ -165,12 +248,15 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     return set;
 }
 
-double PathSetFilm::peakBytes(std::size_t pixels, double terms, double vertices) {
+double PathSetFilm::peakBytes(std::size_t pixels, double terms, double vertices, bool ringed) {
     // Per pixel: paths, background and kept count here, the background in double while tracing;
-    // background, pixelStart and two cursors in assembly. Terms and vertices: once in the tiles'
-    // records, once in the set.
-    const double perPixel = sizeof(int) + sizeof(Color3) + sizeof(std::uint32_t) +
-                            sizeof(Color<float>) + 3 * sizeof(std::uint32_t);
+    // background, pixelStart and two cursors in assembly; with ringed samples, their part, the
+    // terms' two factors and the set's groups. Terms and vertices: once in the tiles' records,
+    // once in the set.
+    const double perPixel =
+        sizeof(int) + sizeof(Color3) + sizeof(std::uint32_t) + sizeof(Color<float>) +
+        3 * sizeof(std::uint32_t) +
+        (ringed ? sizeof(RingedPart) + sizeof(std::array<double, 2>) + sizeof(PathGroups) : 0);
     return double(pixels) * perPixel +
            2 * (terms * sizeof(PathTerm) + vertices * sizeof(PathVertex));
 }

@@ -4,6 +4,7 @@
 // into pixel order.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -23,17 +24,32 @@ class PathSetFilm {
         BlockArray<PathVertex> vertices;  // firstVertex into these
     };
 
+    // A pixel's kept samples of one group (PathGroups): their count, and the sum and squares of
+    // their values (the mean over channels), for the group's variance.
+    struct GroupSums {
+        std::uint32_t kept = 0;
+        double sum = 0, squares = 0;
+    };
+    // What a pixel's ringed samples (its first `ringed`) hold apart from the others.
+    struct RingedPart {
+        GroupSums ringed, sampled;
+        std::uint32_t terms = 0;
+        Color3 background = Color3::Zero();
+    };
+
 public:
-    // `paths`: per pixel, how many samples it takes; `tiles`: how many tiles feed the film.
-    PathSetFilm(int width, int height, std::vector<int> paths, std::size_t tiles);
+    // `paths`: per pixel, how many samples it takes; `tiles`: how many tiles feed the film;
+    // `ringed`: how many of a pixel's first samples ring area lights (the rest sample them).
+    PathSetFilm(int width, int height, std::vector<int> paths, std::size_t tiles,
+                std::uint32_t ringed = 0);
 
     int samples(std::uint32_t pixel) const { return paths_[pixel]; }
 
     class Sample {
     public:
-        Sample(PathSetFilm& film, std::size_t tile, std::uint32_t pixel);
+        Sample(PathSetFilm& film, std::size_t tile, std::uint32_t pixel, int sample);
         void add(const Color3& c, std::span<const PathVertex> vertices);
-        void keep(const Color3&) { ++film_.kept_[pixel_]; }
+        void keep(const Color3& value);
         // Undoes everything the sample added.
         void drop();
 
@@ -41,11 +57,14 @@ public:
         PathSetFilm& film_;
         TileRecord& record_;
         std::uint32_t pixel_;
+        bool ringed_;   // one of the pixel's ringed samples
         double scale_;  // 1 / the pixel's paths
         std::size_t termsBefore_, verticesBefore_;
         Color3 backgroundBefore_;
     };
-    Sample startSample(std::size_t tile, std::uint32_t pixel) { return {*this, tile, pixel}; }
+    Sample startSample(std::size_t tile, std::uint32_t pixel, int sample) {
+        return {*this, tile, pixel, sample};
+    }
 
     // The path set, terms sorted by pixel, each pixel the mean of the samples it kept (fewer
     // than it takes after a stop or a dropped sample). Consumes the film.
@@ -53,13 +72,18 @@ public:
 
     // Bytes a recording holding `terms` terms with `vertices` vertices in all needs at its peak: an
     // upper bound, as if the tiles' records and the assembled set coexisted in full (assemble
-    // frees the records as it goes: about 1.0x the paths measured, see RecordingMemory).
-    static double peakBytes(std::size_t pixels, double terms, double vertices);
+    // frees the records as it goes: about 1.0x the paths measured, see RecordingMemory); `ringed`:
+    // whether some samples ring area lights.
+    static double peakBytes(std::size_t pixels, double terms, double vertices, bool ringed);
 
 private:
     // Terms were scaled by 1 / paths; a pixel that kept fewer is rescaled to their mean (a factor
     // of 1 changes no bit).
     double rescale(std::size_t pixel) const;
+    // Per pixel, the factors of its ringed and its sampled terms: where it kept both, each group's
+    // mean weighted by the inverse of its variance, pooled over the pixel's neighbours (not its
+    // own samples: weights that depend on them would bias it); else rescale's. Fills set.groups.
+    std::vector<std::array<double, 2>> groupFactors(PathSet& set) const;
     // Copies a tile's record into `set` at the pixels' cursors, pixel by pixel and each pixel's
     // terms in the order traced, handing back (through `handedBack`, with the bytes that went to
     // the heap) what has been copied as it goes. The record holds its passes one after the other,
@@ -68,12 +92,15 @@ private:
     // written front to back.
     void copyRecord(TileRecord& record, PathSet& set, std::vector<std::uint32_t>& nextTerm,
                     std::vector<std::uint32_t>& nextVertex,
+                    const std::vector<std::array<double, 2>>& factors,
                     const std::function<void(std::size_t)>& handedBack) const;
 
     int width_, height_;
     std::vector<int> paths_;
     std::vector<Color3> background_;  // summed in double in sample order, as traced
     std::vector<std::uint32_t> kept_;
+    std::uint32_t ringed_;
+    std::vector<RingedPart> ringedParts_;  // per pixel where ringed_ > 0
     std::vector<TileRecord> tiles_;
 };
 

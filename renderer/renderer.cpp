@@ -32,7 +32,7 @@ struct CountingSink {
 // spread over the film, each standing for its share of the film at its pixel's paths.
 double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
                       const SensorDesc& sensor, const FilmWindow& window, PixelSamplerType type,
-                      std::uint64_t seed, const std::vector<int>& paths) {
+                      std::uint64_t seed, const std::vector<int>& paths, bool ringed) {
     const std::size_t pixels = window.pixels();
     const std::size_t pilots = std::min<std::size_t>(pixels, 4096);
     double terms = 0, vertices = 0;
@@ -51,7 +51,7 @@ double recordingBytes(const PathIntegrator& integrator, const Camera& camera,
         vertices += double(sink.vertices) * paths[p];
     }
     const double share = double(pixels) / double(pilots);
-    return PathSetFilm::peakBytes(pixels, terms * share, vertices * share);
+    return PathSetFilm::peakBytes(pixels, terms * share, vertices * share, ringed);
 }
 
 }  // namespace
@@ -150,10 +150,10 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     // lights by rings").
     const int maxDepth = effectiveMaxDepth(options.maxDepth);
     const bool rings = options.lightRings && recordsByRings(options.maxDepth);
-    const PathIntegrator integrator(
-        scene_, *geometry_, *lights_, materials, slots, *sampler, defensive,
-        {maxDepth, scene_.integrator.rrDepth, true,
-         rings ? std::uint64_t(std::max(options.spp, options.directSpp)) : 0});
+    const std::uint32_t ringed =
+        rings ? std::uint32_t(std::max(options.spp, options.directSpp)) : 0;
+    const PathIntegrator integrator(scene_, *geometry_, *lights_, materials, slots, *sampler,
+                                    defensive, {maxDepth, scene_.integrator.rrDepth, true, ringed});
 
     const FilmWindow window = options.window.width > 0
                                   ? options.window
@@ -207,7 +207,7 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     const double meanPaths = std::accumulate(paths.begin(), paths.end(), 0.0) /
                              double(std::max<std::size_t>(recordedPixels, 1));
     const double bytes = recordingBytes(integrator, camera_, scene_.sensor, window, pixelSampler,
-                                        options.seed, paths);
+                                        options.seed, paths, ringed > 0);
     const std::string what =
         fmt::format("recording {:.0f} paths per pixel of the {}x{} film{}", meanPaths,
                     camera_.width(), camera_.height(),
@@ -227,7 +227,9 @@ RecordResult Renderer::record(const RecordOptions& options) const {
             what, bytes / 1e9, options.memoryBudget / 1e9));
 
     const int most = *std::max_element(paths.begin(), paths.end());
-    PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size());
+    // A pixel that takes more paths than are ringed weights the two kinds (path_set.h).
+    PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size(),
+                     most > int(ringed) ? ringed : 0);
     RecordResult result;
     result.stats = traceTiles(
         tileLoop(integrator, window, pixelSampler, options.seed, options.threads, most), film);

@@ -27,7 +27,9 @@ public:
         RgbFilm& film_;
         std::uint32_t pixel_;
     };
-    Sample startSample(std::size_t /*tile*/, std::uint32_t pixel) { return Sample(*this, pixel); }
+    Sample startSample(std::size_t /*tile*/, std::uint32_t pixel, int /*sample*/) {
+        return Sample(*this, pixel);
+    }
 
     // The image, with the loop's stats.
     RenderResult result(RenderStats stats) const;

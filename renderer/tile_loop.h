@@ -108,7 +108,7 @@ std::vector<std::size_t> passOrder(const std::vector<Tile>& tiles, const FilmWin
 // Feeds `film`, which provides, for pixel p = y * width + x of the loop's window (x, y from its
 // corner):
 //   int samples(std::uint32_t p) const: how many samples p takes in all (at most loop.samples);
-//   startSample(std::size_t tile, std::uint32_t p): a sink for one sample of p in tile `tile`
+//   startSample(std::size_t tile, std::uint32_t p, int s): a sink for sample s of p in tile `tile`
 //     (an index into makeTiles), add(const Color3&, std::span<const PathVertex>) as the
 //     integrator calls it, then keep(const Color3& value) or drop().
 // Each pixel lies in one tile, so a film may write its per-pixel state without locks.
@@ -153,7 +153,7 @@ RenderStats traceTiles(const TileLoop& loop, Film& film) {
                                     const Vec2d u = rng.get2D(s, 0);
                                     const Vec2d at = filmPosition(loop.sensor, x, y, u.x(), u.y());
                                     const Ray ray = loop.camera.generateRay(at.x(), at.y());
-                                    auto sample = film.startSample(t, p);
+                                    auto sample = film.startSample(t, p, s);
                                     detail::SummingSink<decltype(sample)> sink{sample};
                                     loop.integrator.trace(ray, rng, s, sink, rayCount);
                                     if (representable(sink.sum)) {

@@ -28,6 +28,16 @@ struct PathTerm {
     Color<float> constant;
 };
 
+// A pixel whose first paths integrate area lights by rings and whose extra paths sample them
+// holds two unbiased estimates of one value, the sampled one far noisier in a highlight: its
+// estimate weights them by the inverse of their variances, not by their counts
+// (docs/design/fitter.md, "Ringed and sampled paths"). The ringed paths' terms come first.
+struct PathGroups {
+    std::uint32_t ringedTerms = 0;
+    // Each group's weight in the estimate over its share of the pixel's paths (1, 1: the mean).
+    float ringedScale = 1, sampledScale = 1;
+};
+
 struct PathSet {
     int width = 0, height = 0;
     int spp = 0;
@@ -39,6 +49,9 @@ struct PathSet {
     // Paths each pixel's estimate is the mean of, where they differ from `spp` (a recording that
     // spends more paths where they inform the fit); empty: `spp` everywhere.
     std::vector<std::uint32_t> pixelPaths;
+    // Per pixel, where its first paths integrate area lights by rings and its extra ones sample
+    // them (PathGroups); empty: every pixel the plain mean of its paths.
+    std::vector<PathGroups> groups;
 
     // The paths pixel p's estimate is the mean of.
     std::uint32_t pathsAt(std::size_t p) const {

@@ -85,7 +85,8 @@ Aggregates rendered(const Scene& scene, int spp, const std::vector<bool>& sphere
 // kRecordings independent recordings at the scene's sphere, replayed at theta1: the aggregates'
 // mean over the recordings, with its variance from their spread.
 Aggregates replayed(const Scene& scene, const PhongMaterial& theta1, int spp, int directSpp,
-                    const std::vector<bool>& sphere, std::size_t& terms, bool lightRings = true) {
+                    const std::vector<bool>& sphere, std::size_t& terms, bool lightRings = true,
+                    int extraPaths = 0, std::size_t* weightedPixels = nullptr) {
     const Renderer renderer(scene);
     const int bsdf = scene.findBsdf("sphere");
     const PhongParams<double> theta{theta1.kd, theta1.ks, theta1.n};
@@ -96,11 +97,16 @@ Aggregates replayed(const Scene& scene, const PhongMaterial& theta1, int spp, in
         options.spp = spp;
         options.directSpp = directSpp;
         options.lightRings = lightRings;
+        if (extraPaths > 0) options.extraPaths.assign(std::size_t(kSize) * kSize, extraPaths);
         options.seed = 1000 + std::uint64_t(k);
         options.fittedBsdfs = {bsdf};
         options.theta0 = {scene.bsdfs[bsdf].params};
         const PathSet paths = renderer.record(options).paths;
         terms += paths.terms.size();
+        if (weightedPixels != nullptr)
+            *weightedPixels += std::size_t(std::count_if(
+                paths.groups.begin(), paths.groups.end(),
+                [](const PathGroups& g) { return g.ringedScale != 1 || g.sampledScale != 1; }));
         std::vector<double> v(3 * kAggregates, 0.0), count(kAggregates, 0.0);
         for (int p = 0; p < kSize * kSize; ++p) {
             const Color3 value = replayPixel(paths, std::size_t(p), &theta);
@@ -181,6 +187,14 @@ TEST(ReplayAgainstRender, RingsUnderAPartlyHiddenLightMatchTheRender) {
     EXPECT_LT(largestDeviation(replayed(scene0, theta1, 16, 0, sphere, sampled, false), truth),
               kThreshold);
     EXPECT_GT(rings, 3 * sampled) << "the pixels near the highlight were integrated by rings";
+    // 4 ringed paths a pixel and 28 sampled ones (a round that grows the paths), each kind's mean
+    // weighted by the inverse of its variance (PathGroups): still the render's expected image.
+    std::size_t mixed = 0, weighted = 0;
+    EXPECT_LT(
+        largestDeviation(replayed(scene0, theta1, 4, 0, sphere, mixed, true, 28, &weighted), truth),
+        kThreshold);
+    EXPECT_GT(weighted, std::size_t(kRecordings) * kSize * kSize / 2)
+        << "most pixels weight their ringed and sampled paths";
     // The card matters: without it the image is brighter than the test can miss.
     Scene open = blocked(&theta1);
     open.shapes.erase(open.shapes.begin() + 1);

@@ -156,6 +156,34 @@ TEST(Replay, PathVarianceIsTheSpreadOfThePixelsTerms) {
     }
 }
 
+// A pixel whose ringed and sampled paths are weighted (PathGroups) has its terms scaled by their
+// group's weight; the path variance undoes that, so it is the plain recording's.
+TEST(Replay, PathVarianceUndoesTheWeightsOfRingedAndSampledPaths) {
+    const RandomPaths r(60, 3);
+    const std::vector<PhongMaterial> theta = twoMaterials();
+    PathSet weighted = r.paths;
+    weighted.groups.resize(std::size_t(weighted.width));
+    for (std::size_t p = 0; p < weighted.groups.size(); ++p) {
+        PathGroups& g = weighted.groups[p];
+        const std::uint32_t begin = weighted.pixelStart[p], end = weighted.pixelStart[p + 1];
+        g.ringedTerms = (end - begin) / 2;
+        g.ringedScale = 3.5f + float(p % 3);
+        g.sampledScale = 0.25f;
+        for (std::uint32_t t = begin; t < end; ++t)
+            weighted.terms[t].constant *=
+                t - begin < g.ringedTerms ? g.ringedScale : g.sampledScale;
+    }
+    int spread = 0;
+    for (int p = 0; p < r.paths.width; ++p) {
+        const Color3 plain = replayPathVariance(r.paths, std::size_t(p), theta.data());
+        const Color3 variance = replayPathVariance(weighted, std::size_t(p), theta.data());
+        spread += (plain > 0).any();
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(variance[c], plain[c], 1e-5 * (1 + plain[c])) << p << " " << c;
+    }
+    EXPECT_GT(spread, 30);
+}
+
 TEST(Replay, VertexBehindTheLobeContributesOnlyDiffuse) {
     PathSet paths;
     paths.width = paths.height = 1;
