@@ -96,9 +96,13 @@ double PathSetFilm::rescale(std::size_t p) const {
 
 std::vector<std::array<double, 2>> PathSetFilm::groupFactors(PathSet& set) const {
     const std::size_t pixels = paths_.size();
-    std::vector<std::array<double, 2>> factors(pixels);
-    for (std::size_t p = 0; p < pixels; ++p) factors[p] = {rescale(p), rescale(p)};
-    if (ringed_ == 0) return factors;
+    const auto keptBoth = [](const RingedPart& part) {
+        return part.ringed.kept > 0 && part.sampled.kept > 0;
+    };
+    // Only ringed recordings whose pixels took more paths than they ring weight any: the others
+    // keep rescale's factors, computed as the terms are copied (a vector of them would add 16
+    // bytes a pixel to the recording's peak).
+    if (std::none_of(ringedParts_.begin(), ringedParts_.end(), keptBoth)) return {};
     // A group's variance a path, pooled over the pixel's neighbours within `radius` that kept
     // two of its samples; negative where none did.
     const auto pooled = [&](int x, int y, int radius, const GroupSums RingedPart::*group) {
@@ -119,12 +123,13 @@ std::vector<std::array<double, 2>> PathSetFilm::groupFactors(PathSet& set) const
             v = pooled(x, y, radius, group);
         return v;
     };
-    bool weighted = false;
+    std::vector<std::array<double, 2>> factors(pixels);
     set.groups.assign(pixels, PathGroups{});
     for (std::size_t p = 0; p < pixels; ++p) {
         const RingedPart& part = ringedParts_[p];
+        factors[p] = {rescale(p), rescale(p)};
         set.groups[p].ringedTerms = part.terms;
-        if (part.ringed.kept == 0 || part.sampled.kept == 0) continue;
+        if (!keptBoth(part)) continue;
         const int x = int(p % std::size_t(width_)), y = int(p / std::size_t(width_));
         const double ringedVariance = variance(x, y, &RingedPart::ringed),
                      sampledVariance = variance(x, y, &RingedPart::sampled);
@@ -139,10 +144,13 @@ std::vector<std::array<double, 2>> PathSetFilm::groupFactors(PathSet& set) const
         factors[p] = {paths_[p] * w / part.ringed.kept, paths_[p] * (1 - w) / part.sampled.kept};
         set.groups[p].ringedScale = float(w * kept / part.ringed.kept);
         set.groups[p].sampledScale = float((1 - w) * kept / part.sampled.kept);
-        weighted = true;
     }
-    if (!weighted) set.groups.clear();
     return factors;
+}
+
+double PathSetFilm::factor(const std::vector<std::array<double, 2>>& factors, std::size_t p,
+                           bool ringed) const {
+    return factors.empty() ? rescale(p) : factors[p][ringed ? 0 : 1];
 }
 
 void PathSetFilm::copyRecord(TileRecord& record, PathSet& set, std::vector<std::uint32_t>& nextTerm,
@@ -163,7 +171,7 @@ void PathSetFilm::copyRecord(TileRecord& record, PathSet& set, std::vector<std::
         for (RecordRun& run : runs) {
             for (; run.next < run.end && record.terms[run.next].pixel == p; ++run.next) {
                 PathTerm term = record.terms[run.next];
-                const double scale = factors[p][nextTerm[p] < ringedEnd ? 0 : 1];
+                const double scale = factor(factors, p, nextTerm[p] < ringedEnd);
                 for (std::uint32_t v = 0; v < term.vertexCount; ++v)
                     set.vertices[nextVertex[p] + v] = record.vertices[term.firstVertex + v];
                 run.nextVertex = term.firstVertex + term.vertexCount;
@@ -197,8 +205,9 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     const std::vector<std::array<double, 2>> factors = groupFactors(set);
     set.background.resize(pixels);
     for (std::size_t p = 0; p < pixels; ++p) {
-        Color3 background = background_[p] * factors[p][1];
-        if (ringed_ > 0) background = ringedParts_[p].background * factors[p][0] + background;
+        Color3 background = background_[p] * factor(factors, p, false);
+        if (ringed_ > 0)
+            background = ringedParts_[p].background * factor(factors, p, true) + background;
         set.background[p] = background.cast<float>();
     }
     background_ = {};

@@ -83,7 +83,11 @@ private:
     // Per pixel, the factors of its ringed and its sampled terms: where it kept both, each group's
     // mean weighted by the inverse of its variance, pooled over the pixel's neighbours (not its
     // own samples: weights that depend on them would bias it); else rescale's. Fills set.groups.
+    // Empty, and set.groups too, where no pixel kept both.
     std::vector<std::array<double, 2>> groupFactors(PathSet& set) const;
+    // The factor of pixel p's ringed or sampled terms: from groupFactors', else rescale's.
+    double factor(const std::vector<std::array<double, 2>>& factors, std::size_t p,
+                  bool ringed) const;
     // Copies a tile's record into `set` at the pixels' cursors, pixel by pixel and each pixel's
     // terms in the order traced, handing back (through `handedBack`, with the bytes that went to
     // the heap) what has been copied as it goes. The record holds its passes one after the other,

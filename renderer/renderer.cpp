@@ -201,13 +201,18 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     PixelSamplerType pixelSampler = options.pixelSampler.value_or(scene_.sensor.pixelSampler);
     if (pixelSampler == PixelSamplerType::Sobol) pixelSampler = PixelSamplerType::Padded;
 
+    const int most = *std::max_element(paths.begin(), paths.end());
+    // A pixel that takes more paths than are ringed weights the two kinds (path_set.h): only then
+    // does the film keep them apart.
+    const std::uint32_t filmRinged = most > int(ringed) ? ringed : 0;
+
     // Refuse what would exhaust memory before trying: half the machine's is the budget.
     const std::size_t recordedPixels =
         pixels - std::size_t(std::count(paths.begin(), paths.end(), 0));
     const double meanPaths = std::accumulate(paths.begin(), paths.end(), 0.0) /
                              double(std::max<std::size_t>(recordedPixels, 1));
     const double bytes = recordingBytes(integrator, camera_, scene_.sensor, window, pixelSampler,
-                                        options.seed, paths, ringed > 0);
+                                        options.seed, paths, filmRinged > 0);
     const std::string what =
         fmt::format("recording {:.0f} paths per pixel of the {}x{} film{}", meanPaths,
                     camera_.width(), camera_.height(),
@@ -226,10 +231,7 @@ RecordResult Renderer::record(const RecordOptions& options) const {
             "the film size, or raise --max-memory",
             what, bytes / 1e9, options.memoryBudget / 1e9));
 
-    const int most = *std::max_element(paths.begin(), paths.end());
-    // A pixel that takes more paths than are ringed weights the two kinds (path_set.h).
-    PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size(),
-                     most > int(ringed) ? ringed : 0);
+    PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size(), filmRinged);
     RecordResult result;
     result.stats = traceTiles(
         tileLoop(integrator, window, pixelSampler, options.seed, options.threads, most), film);

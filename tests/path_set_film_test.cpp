@@ -81,7 +81,7 @@ struct MixedFilm {
     static constexpr int kSize = 48, kRinged = 4, kPaths = 16;
     static constexpr double kMean = 2;
     PathSet set;
-    std::vector<double> ringedMean, sampledMean;  // per pixel
+    std::vector<double> ringedSum, sampledSum;  // per pixel
     std::vector<double> ringedSquares, sampledSquares;
 
     static double value(std::uint32_t p, int s) {
@@ -94,8 +94,8 @@ struct MixedFilm {
     MixedFilm() {
         const std::size_t pixels = std::size_t(kSize) * kSize;
         PathSetFilm film(kSize, kSize, std::vector<int>(pixels, kPaths), 1, kRinged);
-        ringedMean.assign(pixels, 0);
-        sampledMean.assign(pixels, 0);
+        ringedSum.assign(pixels, 0);
+        sampledSum.assign(pixels, 0);
         ringedSquares.assign(pixels, 0);
         sampledSquares.assign(pixels, 0);
         for (std::uint32_t p = 0; p < pixels; ++p)
@@ -104,7 +104,7 @@ struct MixedFilm {
                 auto sample = film.startSample(0, p, s);
                 sample.add(Color3::Constant(y), std::vector<PathVertex>{{-0.5f, 0}});
                 sample.keep(Color3::Constant(y));
-                (s < kRinged ? ringedMean : sampledMean)[p] += y;
+                (s < kRinged ? ringedSum : sampledSum)[p] += y;
                 (s < kRinged ? ringedSquares : sampledSquares)[p] += y * y;
             }
         set = film.assemble(kPaths, 1);
@@ -136,8 +136,8 @@ TEST(PathSetFilm, RingedAndSampledPathsAreWeightedByTheirNeighboursVariances) {
                 for (int u = std::max(x - 1, 0); u <= std::min(x + 1, n - 1); ++u) {
                     if (u == x && v == y) continue;
                     const std::size_t q = std::size_t(v) * n + std::size_t(u);
-                    ringed += spread(m.ringedMean[q], m.ringedSquares[q], MixedFilm::kRinged);
-                    sampled += spread(m.sampledMean[q], m.sampledSquares[q],
+                    ringed += spread(m.ringedSum[q], m.ringedSquares[q], MixedFilm::kRinged);
+                    sampled += spread(m.sampledSum[q], m.sampledSquares[q],
                                       MixedFilm::kPaths - MixedFilm::kRinged);
                     ringedFreedom += MixedFilm::kRinged - 1;
                     sampledFreedom += MixedFilm::kPaths - MixedFilm::kRinged - 1;
@@ -146,8 +146,8 @@ TEST(PathSetFilm, RingedAndSampledPathsAreWeightedByTheirNeighboursVariances) {
             const double b = sampled / sampledFreedom / (MixedFilm::kPaths - MixedFilm::kRinged);
             const double w = std::clamp(b / (a + b), 1e-3, 1 - 1e-3);
             const double expected =
-                w * m.ringedMean[p] / MixedFilm::kRinged +
-                (1 - w) * m.sampledMean[p] / (MixedFilm::kPaths - MixedFilm::kRinged);
+                w * m.ringedSum[p] / MixedFilm::kRinged +
+                (1 - w) * m.sampledSum[p] / (MixedFilm::kPaths - MixedFilm::kRinged);
             ASSERT_NEAR(m.estimate(p), expected, 1e-6 * (1 + std::abs(expected))) << x << " " << y;
             EXPECT_EQ(m.set.groups[p].ringedTerms, std::uint32_t(MixedFilm::kRinged));
             EXPECT_FLOAT_EQ(m.set.groups[p].ringedScale, float(w * 16 / 4));
@@ -165,7 +165,7 @@ TEST(PathSetFilm, WeightedPixelsStayUnbiasedAndAreLessNoisyThanTheMean) {
     for (std::size_t p = 0; p < pixels; ++p) {
         const double e = m.estimate(p) - MixedFilm::kMean;
         const double plain =
-            (m.ringedMean[p] + m.sampledMean[p]) / MixedFilm::kPaths - MixedFilm::kMean;
+            (m.ringedSum[p] + m.sampledSum[p]) / MixedFilm::kPaths - MixedFilm::kMean;
         sum += e;
         squares += e * e;
         plainSquares += plain * plain;
