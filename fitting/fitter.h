@@ -41,7 +41,8 @@ LossKind parseLoss(const std::string& name);
 struct MaterialFit {
     Color3 kd = Color3::Zero(), ks = Color3::Zero();
     double n = 0;
-    // Standard errors; 0 for the parameters in `unconstrained`, which are held at their start.
+    // Standard errors; 0 for the parameters in `unconstrained`, which are held at their start, but
+    // for an n listed there because no lobe holds it (lobeHoldsExponent), which keeps its own.
     // The fit works in log n: logNStd is the standard error s of log n (raised to the rounds'
     // scatter), a round's nStd n s; the result's nStd is at least the standard deviation of n
     // where log n is normal with s (logNormalStd), and what the widenings in n reached.

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "convergence.h"
+#include "identifiability.h"
 
 namespace phongfit {
 
@@ -47,6 +48,22 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
     }
     if (held.n) fit.unconstrained.push_back("n");
     return fit;
+}
+
+bool lobeHoldsExponent(const MaterialFit& fit) {
+    if (fit.nStd < fit.n) return true;
+    const std::vector<double> ks(fit.ks.begin(), fit.ks.end()),
+        ksStd(fit.ksStd.begin(), fit.ksStd.end());
+    return fit.ks.maxCoeff() >= kReflectanceFloor && lobeDetected(ks, ksStd, kLobeConfirmation);
+}
+
+void finishExponentUncertainty(MaterialFit& fit) {
+    if (!(fit.n > 0)) return;
+    fit.nStd = std::max(fit.nStd, logNormalStd(fit.n, fit.logNStd));
+    if (!fit.isUnconstrained("n") && !lobeHoldsExponent(fit)) fit.unconstrained.push_back("n");
+    if (fit.isUnconstrained("n") || fit.nStd < fit.n) return;
+    fit.nStd =
+        std::max(fit.nStd, std::min(fit.n * std::expm1(3 * fit.logNStd), kMaxExponent - fit.n) / 3);
 }
 
 double logNormalStd(double n, double s) {

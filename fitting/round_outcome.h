@@ -34,6 +34,21 @@ struct RoundOutcome {
 // this of its logNStd; its rounds keep n s.
 double logNormalStd(double n, double s);
 
+// Whether a lobe holds the fit's n: n resolved (nStd < n), or a lobe confirmed (some ks group at
+// least kReflectanceFloor and kLobeConfirmation standard errors above 0). An n neither holds is
+// listed unconstrained in the result, wherever it went (1e6 for a sphere with no lobe under a
+// 40-degree light); not in the rounds, whose logic (probes, convergence) takes "unconstrained" as
+// held.
+bool lobeHoldsExponent(const MaterialFit& fit);
+
+// A fit's result, n's uncertainty as far as its standard errors reach: nStd at least
+// logNormalStd's, and n listed unconstrained where no lobe holds it. An n a lobe holds only on one
+// side (nStd >= n: a lobe sharper than a pixel, bounded from below) has an nStd reaching log n's
+// 3-standard-error upper end, n e^(3 s): the log-normal's standard deviation falls short of it
+// (n 2660 +- 7384, s 1.1, for a true 30000). s is the fit's own (logNStd), not one read back from
+// nStd, whose widenings in n (a drift, a probe's reach) are reaches already.
+void finishExponentUncertainty(MaterialFit& fit);
+
 // Material block `m` at `params`' point, with standard errors `stdNatural` (its natural ones)
 // and the parameters it holds named unconstrained.
 template <int P>

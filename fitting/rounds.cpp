@@ -502,7 +502,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         !imageNoiseMeetsPrecision(result.materials, options.precision))
         result.stopReason = "noise floor";
     for (MaterialFit& m : result.materials) applyImageNoise(m);
-    for (MaterialFit& m : result.materials) m.nStd = std::max(m.nStd, logNormalStd(m.n, m.logNStd));
+    for (MaterialFit& m : result.materials) finishExponentUncertainty(m);
     if (!exact) {
         // A converged estimate whose rounds scatter by as much as a parameter is not resolved.
         const bool resolved = allResolved(result.materials);

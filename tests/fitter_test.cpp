@@ -358,6 +358,92 @@ TEST(Resolution, ExponentStandardErrorIsTheLogNormalSpread) {
     EXPECT_EQ(logNormalStd(100, 0), 0);  // held
 }
 
+// The Cornell box under its 40-degree light at n 30000, ks 0.05 (the recovery matrix's cell 0133):
+// the reflection's rim is sharper than a pixel, the images bound n only from below, and the fit
+// ends at n 2660 with s 1.1 in log n. The log-normal's spread, n 2660 +- 7384, reaches 24800 at 3
+// standard errors, short of the truth; log n's own 3 standard errors reach 2660 e^3.3 = 72000.
+// The result's nStd reaches that far, and a lobe the images confirm keeps n listed free.
+TEST(Resolution, AnExponentBoundOnlyFromBelowReachesLogNsUpperEnd) {
+    MaterialFit fit;
+    fit.kd = Color3::Constant(0.699);
+    fit.kdStd = Color3::Constant(0.0056);
+    fit.ks = Color3::Constant(0.0503);
+    fit.ksStd = Color3::Constant(0.0024);
+    fit.n = 2660;
+    fit.logNStd = 1.1;
+    fit.nStd = fit.n * fit.logNStd;
+    EXPECT_TRUE(lobeHoldsExponent(fit));
+    finishExponentUncertainty(fit);
+    EXPECT_TRUE(fit.unconstrained.empty());
+    EXPECT_EQ(fit.logNStd, 1.1);
+    EXPECT_NEAR(fit.nStd, fit.n * std::expm1(3.3) / 3, 1e-6 * fit.nStd);
+    EXPECT_LT(std::abs(fit.n - 30000), 3 * fit.nStd);
+    EXPECT_GT(std::abs(fit.n - 30000), 3 * logNormalStd(2660, 1.1));  // what it reported before
+    // Near the top of n's range the reach stops there.
+    fit.n = 4e5;
+    fit.nStd = logNormalStd(fit.n, 1.1);
+    finishExponentUncertainty(fit);
+    EXPECT_EQ(fit.nStd, logNormalStd(4e5, 1.1));
+    // A resolved n keeps its widened standard error.
+    fit.n = 3000;
+    fit.logNStd = 0.02;
+    fit.nStd = 75;  // widened by the rounds' drift beyond n s = 60
+    finishExponentUncertainty(fit);
+    EXPECT_EQ(fit.nStd, 75);
+    EXPECT_EQ(fit.logNStd, 0.02);
+    EXPECT_TRUE(fit.unconstrained.empty());
+    // A reach in n (a probe's: 180 on n 45) is not read back as s and stretched again (as s it
+    // would be 1.23, stretched to 587).
+    fit.n = 45;
+    fit.logNStd = 0.01;
+    fit.nStd = 180;
+    finishExponentUncertainty(fit);
+    EXPECT_EQ(fit.nStd, 180);
+}
+
+// No lobe means no lobe: a sphere with ks = 0 under a 40-degree light (matrix cell 0129) ended with
+// n at its upper bound, 1e6 +- 5.1e6, ks 0.0009 +- 0.0015, and n not listed unconstrained; a
+// point-lit one (0081) with ks 1.6e-5 +- 6.7e-6, 2.4 standard errors but far below any visible
+// lobe. Neither lobe holds n: it is listed unconstrained wherever it went, with its standard error.
+TEST(Resolution, AnExponentNoLobeHoldsIsListedUnconstrainedWhereverItWent) {
+    MaterialFit fit;
+    fit.kd = Color3(0.599, 0.498, 0.400);
+    fit.kdStd = Color3::Constant(0.007);
+    fit.ks = Color3(0.00094, 0.0023, 0.00031);
+    fit.ksStd = Color3(0.0017, 0.0023, 0.0008);
+    fit.n = kMaxExponent;
+    fit.nStd = 5.1e6;
+    fit.logNStd = 0.6;
+    EXPECT_FALSE(lobeHoldsExponent(fit));
+    finishExponentUncertainty(fit);
+    EXPECT_EQ(fit.unconstrained, (std::vector<std::string>{"n"}));
+    EXPECT_EQ(fit.n, kMaxExponent);
+    EXPECT_EQ(fit.nStd, 5.1e6);  // kept, not stretched
+    EXPECT_TRUE(unresolvedParameters(fit).empty());
+
+    fit = MaterialFit{};
+    fit.kd = Color3::Constant(0.5);
+    fit.kdStd = Color3::Constant(0.0007);
+    fit.ks = Color3(1.6e-5, 1.9e-5, 8e-6);
+    fit.ksStd = Color3(6.7e-6, 7.7e-6, 3.4e-6);
+    fit.n = 15315;
+    fit.nStd = 5e5;
+    EXPECT_FALSE(lobeHoldsExponent(fit));  // significant, but below kReflectanceFloor
+    finishExponentUncertainty(fit);
+    EXPECT_EQ(fit.unconstrained, (std::vector<std::string>{"n"}));
+    // An n the images resolve is held by its lobe whatever ks is.
+    fit.unconstrained.clear();
+    fit.nStd = 1000;
+    EXPECT_TRUE(lobeHoldsExponent(fit));
+    // And a confirmed lobe holds an n it does not resolve.
+    fit.nStd = 5e5;
+    fit.ks = Color3::Constant(0.05);
+    fit.ksStd = Color3::Constant(0.016);
+    EXPECT_TRUE(lobeHoldsExponent(fit));
+    fit.ksStd = Color3::Constant(0.017);  // 2.9 standard errors: not confirmed
+    EXPECT_FALSE(lobeHoldsExponent(fit));
+}
+
 TEST(Identifiability, FindsInvisibleAndCollinearParameters) {
     // Columns of J: a, b, 0 (invisible), a + 2b (collinear with the first two), c.
     Eigen::MatrixXd j(6, 5);

@@ -29,6 +29,7 @@ nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
             {"kd_std", rgb(m.kdStd)},
             {"ks_std", rgb(m.ksStd)},
             {"n_std", m.nStd},
+            {"log_n_std", m.logNStd},
             {"image_noise_std",
              {{"kd", rgb(m.kdImageStd)}, {"ks", rgb(m.ksImageStd)}, {"n", m.n * m.logNImageStd}}},
             {"unconstrained", m.unconstrained}};

@@ -140,9 +140,7 @@ void printUniformFit(const FitCli& a, const CaptureRun& run) {
     const MaterialFit& m = fit.phong.materials[0];
     fmt::print("capture: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n",
                formatColor(m.kd, m.kdStd, a.grey), formatColor(m.ks, m.ksStd, a.grey), m.n, m.nStd,
-               m.unconstrained.empty()
-                   ? ""
-                   : fmt::format("  (unconstrained, held: {})", fmt::join(m.unconstrained, ", ")));
+               unconstrainedNote(m));
     fmt::print("fitted {} pairs of {} lights: rmse {:.5g}; ", fit.model.used, run.lights.size(),
                fit.phong.rmse);
     printLeftOut(run, fit.model);

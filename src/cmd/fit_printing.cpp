@@ -30,11 +30,15 @@ std::string notConvergedBecause(const FitResult& result) {
             "pixel ({} more than the first round's): more paths would not halve the variance",
             kMostExtraPaths);
     if (result.stopReason == "unresolved") {
+        // An n no lobe holds is listed unconstrained, with its standard error at least n.
         std::vector<std::string> names;
-        for (const MaterialFit& m : result.materials)
-            for (const std::string& name : unresolvedParameters(m))
+        for (const MaterialFit& m : result.materials) {
+            std::vector<std::string> unresolved = unresolvedParameters(m);
+            if (m.isUnconstrained("n") && m.nStd >= m.n && m.nStd > 0) unresolved.push_back("n");
+            for (const std::string& name : unresolved)
                 if (std::find(names.begin(), names.end(), name) == names.end())
                     names.push_back(name);
+        }
         return fmt::format(
             "the estimate stopped moving, but {} {} standard errors as large as {} values (more "
             "paths, --spp or --adaptive-spp, may resolve them)",
@@ -81,15 +85,27 @@ void printRound(const FitRound& r, const SceneFitProblem& problem, bool fitExpos
                r.peakMemoryBytes / 1e6, params);
 }
 
+std::string unconstrainedNote(const MaterialFit& m) {
+    std::vector<std::string> held;
+    bool noLobe = false;
+    for (const std::string& name : m.unconstrained)
+        if (name == "n" && m.nStd > 0)
+            noLobe = true;
+        else
+            held.push_back(name);
+    if (held.empty() && !noLobe) return "";
+    std::string note = held.empty() ? "" : fmt::format("held: {}", fmt::join(held, ", "));
+    if (noLobe) note += fmt::format("{}n: no lobe holds it", note.empty() ? "" : "; ");
+    return fmt::format("  (unconstrained, {})", note);
+}
+
 void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,
                    const std::string& dir) {
     for (std::size_t s = 0; s < result.materials.size(); ++s) {
         const MaterialFit& m = result.materials[s];
         fmt::print("{}: kd = {}, ks = {}, n = {:.5g} ± {:.2g}{}\n", problem.materials[s],
                    formatColor(m.kd, m.kdStd, grey), formatColor(m.ks, m.ksStd, grey), m.n, m.nStd,
-                   m.unconstrained.empty() ? ""
-                                           : fmt::format("  (unconstrained, held: {})",
-                                                         fmt::join(m.unconstrained, ", ")));
+                   unconstrainedNote(m));
     }
     if (result.exposure)
         fmt::print("exposure = {:.5g} ± {:.2g}{}\n", result.exposure->value, result.exposure->std,

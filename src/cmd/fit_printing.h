@@ -11,6 +11,10 @@ namespace phongfit {
 // One line per round on stderr, naming the materials: rmse, iterations, time, memory, values.
 void printRound(const FitRound& round, const SceneFitProblem& problem, bool fitExposure);
 
+// What a material's result line says of the parameters it lists unconstrained: those held, and
+// an n no lobe holds (which keeps its standard error); empty when none is.
+std::string unconstrainedNote(const MaterialFit& m);
+
 // Per material kd, ks, n with standard errors (and what is unconstrained), the exposure if
 // fitted, then the rmse, rounds, convergence, time, what was left out and where fit.json is.
 void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,

@@ -374,6 +374,11 @@ TEST_F(RoundTrip, RingsSayASubPixelLobesExponentIsNotHeld) {
         EXPECT_FALSE(report["converged"].get<bool>()) << what;
         EXPECT_GT(m["n_std"].get<double>(), 30000) << what;
         expectCovered(m, {kdv, kdv, kdv}, {ksv, ksv, ksv}, 30000, what);
+        // Bound from below only: n's standard error reaches log n's 3 standard errors up.
+        const double n = m["n"].get<double>(), s = m["log_n_std"].get<double>();
+        EXPECT_GE(3 * m["n_std"].get<double>(),
+                  (1 - 1e-12) * std::min(n * std::expm1(3 * s), 1e6 - n))
+            << what << ": n " << n << ", log n +- " << s;
     }
 }
 
