@@ -68,6 +68,11 @@ struct MaterialFit {
 // name ("kd", "ks", "n"): what the round's recordings and the images do not resolve.
 std::vector<std::string> unresolvedParameters(const MaterialFit& fit);
 
+// Whether a fit's result lists n unconstrained because no lobe holds it (lobeHoldsExponent in
+// round_outcome.h), not because the fit held it: a held n reports a standard error of 0, this one
+// keeps its own.
+bool exponentListedForNoLobe(const MaterialFit& fit);
+
 // FitOptions::fitExposure: the global scale s of every prediction (observed = s * rendered).
 struct ExposureFit {
     double value = 1, std = 0;

@@ -57,6 +57,10 @@ bool lobeHoldsExponent(const MaterialFit& fit) {
     return fit.ks.maxCoeff() >= kReflectanceFloor && lobeDetected(ks, ksStd, kLobeConfirmation);
 }
 
+bool exponentListedForNoLobe(const MaterialFit& fit) {
+    return fit.isUnconstrained("n") && fit.nStd > 0;
+}
+
 void finishExponentUncertainty(MaterialFit& fit) {
     if (!(fit.n > 0)) return;
     fit.nStd = std::max(fit.nStd, logNormalStd(fit.n, fit.logNStd));

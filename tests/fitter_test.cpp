@@ -420,6 +420,10 @@ TEST(Resolution, AnExponentNoLobeHoldsIsListedUnconstrainedWhereverItWent) {
     EXPECT_EQ(fit.n, kMaxExponent);
     EXPECT_EQ(fit.nStd, 5.1e6);  // kept, not stretched
     EXPECT_TRUE(unresolvedParameters(fit).empty());
+    EXPECT_TRUE(exponentListedForNoLobe(fit));
+    MaterialFit held = fit;  // held by the fit: reported with a standard error of 0
+    held.nStd = 0;
+    EXPECT_FALSE(exponentListedForNoLobe(held));
 
     fit = MaterialFit{};
     fit.kd = Color3::Constant(0.5);

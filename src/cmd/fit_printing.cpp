@@ -34,7 +34,7 @@ std::string notConvergedBecause(const FitResult& result) {
         std::vector<std::string> names;
         for (const MaterialFit& m : result.materials) {
             std::vector<std::string> unresolved = unresolvedParameters(m);
-            if (m.isUnconstrained("n") && m.nStd >= m.n && m.nStd > 0) unresolved.push_back("n");
+            if (exponentListedForNoLobe(m)) unresolved.push_back("n");
             for (const std::string& name : unresolved)
                 if (std::find(names.begin(), names.end(), name) == names.end())
                     names.push_back(name);
@@ -86,13 +86,10 @@ void printRound(const FitRound& r, const SceneFitProblem& problem, bool fitExpos
 }
 
 std::string unconstrainedNote(const MaterialFit& m) {
+    const bool noLobe = exponentListedForNoLobe(m);
     std::vector<std::string> held;
-    bool noLobe = false;
     for (const std::string& name : m.unconstrained)
-        if (name == "n" && m.nStd > 0)
-            noLobe = true;
-        else
-            held.push_back(name);
+        if (!(noLobe && name == "n")) held.push_back(name);
     if (held.empty() && !noLobe) return "";
     std::string note = held.empty() ? "" : fmt::format("held: {}", fmt::join(held, ", "));
     if (noLobe) note += fmt::format("{}n: no lobe holds it", note.empty() ? "" : "; ");
