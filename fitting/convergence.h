@@ -60,10 +60,10 @@ inline void addPathNoise(std::vector<std::vector<double>>& noise,
             noise[b][i] = std::hypot(noise[b][i], more[b][i]);
 }
 
-// A settled round's path noise (pathNoise) and paths, for the next round's move; only where its
+// A round's path noise (pathNoise) and paths, for the next round's move; only where its
 // recordings resolve its estimate (a parameter as uncertain as it is large is no estimate to be
 // near, and its standard error would pass any move).
-struct SettledRound {
+struct RoundPathNoise {
     std::vector<std::vector<double>> pathNoise;  // empty for none
     double pathFactor = 1;
 };
@@ -75,7 +75,7 @@ struct SettledRound {
 template <int P>
 bool settledAgain(const std::vector<Eigen::Matrix<double, P, 1>>& before,
                   const std::vector<Eigen::Matrix<double, P, 1>>& after,
-                  std::vector<std::vector<double>> noise, const SettledRound& last,
+                  std::vector<std::vector<double>> noise, const RoundPathNoise& last,
                   const RoundOutcome& out, const ParameterState<P>& params,
                   const FitOptions& options, double pathFactor) {
     if (last.pathNoise.empty() || options.precision <= 0 || pathFactor <= last.pathFactor ||

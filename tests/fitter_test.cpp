@@ -1069,20 +1069,45 @@ TEST(Fitter, RoundsWithFreshRandomNumbersStopOnceChangesAreWithinNoise) {
     EXPECT_FALSE(fitMaterials({obs}, record, {start}, options).converged);
 }
 
+// The three-light sphere fitted from kd 0.3, ks 0.2, n 20 on `record`'s recordings at `precision`,
+// at most 8 rounds and without the sharper probe (the rounds alone).
+FitResult fitRoundsAlone(const PathRecorder& record, double precision) {
+    const Observation obs = observe(makePaths(threeLights()), {kTruth});
+    FitOptions options;
+    options.maxRounds = 8;
+    options.precision = precision;
+    options.recordingFollowsEstimate = false;
+    const FitResult r = fitMaterials(
+        {obs}, record, {material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20)}, options);
+    expectFinite(r);
+    return r;
+}
+
+// The largest move of a parameter from round `before` to round `after`, in `after`'s standard
+// errors and in both rounds' together (n's relative, as log n's).
+struct MoveInStandardErrors {
+    double own = 0, both = 0;
+};
+MoveInStandardErrors moveInStandardErrors(const MaterialFit& before, const MaterialFit& after) {
+    MoveInStandardErrors most;
+    const auto count = [&](double move, double own, double earlier) {
+        most.own = std::max(most.own, std::abs(move) / own);
+        most.both = std::max(most.both, std::abs(move) / std::hypot(own, earlier));
+    };
+    for (int c = 0; c < 3; ++c) {
+        count(after.kd[c] - before.kd[c], after.kdStd[c], before.kdStd[c]);
+        count(after.ks[c] - before.ks[c], after.ksStd[c], before.ksStd[c]);
+    }
+    count(std::log(after.n / before.n), after.nStd / after.n, before.nStd / before.n);
+    return most;
+}
+
 // Paths that grow average their noise down. A round recorded at a settled round's estimate with
 // more paths moves from it by both rounds' path noise, the larger part the settled round's; by its
 // own standard errors alone the move would not have settled and the paths would have grown again.
 // As precise as asked and within both, the fit stops there.
 TEST(Fitter, AMoveAfterThePathsGrewIsJudgedByBothRoundsPathNoise) {
-    const SphereScene scene = threeLights();
-    const Observation obs = observe(makePaths(scene), {kTruth});
-    const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 20);
-    FitOptions options;
-    options.maxRounds = 8;
-    options.precision = 0.03;
-    options.recordingFollowsEstimate = false;  // no sharper probe: the rounds alone
-    const FitResult r = fitMaterials({obs}, noisyRecorder(scene, 1, 0.5, true), {start}, options);
-    expectFinite(r);
+    const FitResult r = fitRoundsAlone(noisyRecorder(threeLights(), 1, 0.5, true), 0.03);
     std::size_t grown = 0;  // the first round with more paths
     while (grown < r.rounds.size() && r.rounds[grown].pathFactor == 1) ++grown;
     ASSERT_GE(grown, 2u);
@@ -1090,20 +1115,43 @@ TEST(Fitter, AMoveAfterThePathsGrewIsJudgedByBothRoundsPathNoise) {
     EXPECT_TRUE(r.converged);
     EXPECT_EQ(r.stopReason, "precision");
     // The move past 3 of the grown round's own standard errors, within 3 of both rounds'.
-    const MaterialFit &settled = r.rounds[grown - 1].materials[0],
-                      &last = r.rounds[grown].materials[0];
-    double most = 0, mostBoth = 0;
-    const auto count = [&](double move, double own, double before) {
-        most = std::max(most, std::abs(move) / own);
-        mostBoth = std::max(mostBoth, std::abs(move) / std::hypot(own, before));
+    const MoveInStandardErrors move =
+        moveInStandardErrors(r.rounds[grown - 1].materials[0], r.rounds[grown].materials[0]);
+    EXPECT_GT(move.own, FitOptions().stdTolerance);
+    EXPECT_LT(move.both, FitOptions().stdTolerance);
+    expectCovered(r.materials[0], kTruth);
+}
+
+// At equal paths too, a round's move from the last round's estimate is both rounds' path noise, and
+// the last round's can be the larger part: here round 1's recordings are ten times as noisy as
+// round 2's (as where ks had sat 1e-5 above its bound with standard errors three times those at
+// the bound: the sphere under the 40-degree light, no lobe). By round 2's own standard errors alone
+// its move would not have settled, and a round 3 would have been spent.
+TEST(Fitter, AMoveAtEqualPathsIsJudgedByBothRoundsPathNoise) {
+    const SphereScene scene = threeLights();
+    const PathRecorder noisyFirst = [scene](int, const std::vector<PhongMaterial>&, int recording,
+                                            const std::vector<float>&, double) {
+        PathSet ps = makePaths(scene);
+        std::mt19937 rng(7 + unsigned(recording));
+        // Each round (two recordings) ten times less noisy than the last, from round 2 on as
+        // noisy as round 2.
+        std::normal_distribution<float> noise(0, recording < 2   ? 0.3f
+                                                 : recording < 4 ? 0.03f
+                                                                 : 0.003f);
+        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        return ps;
     };
-    for (int c = 0; c < 3; ++c) {
-        count(last.kd[c] - settled.kd[c], last.kdStd[c], settled.kdStd[c]);
-        count(last.ks[c] - settled.ks[c], last.ksStd[c], settled.ksStd[c]);
-    }
-    count(std::log(last.n / settled.n), last.nStd / last.n, settled.nStd / settled.n);
-    EXPECT_GT(most, options.stdTolerance);
-    EXPECT_LT(mostBoth, options.stdTolerance);
+    // A precision met from the first round: the paths never grow.
+    const FitResult r = fitRoundsAlone(noisyFirst, 0.5);
+    ASSERT_EQ(r.rounds.size(), 3u);
+    for (const FitRound& round : r.rounds) EXPECT_EQ(round.pathFactor, 1);
+    EXPECT_TRUE(r.converged);
+    EXPECT_EQ(r.stopReason, "precision");
+    // Exact images: the standard errors are the recordings' alone.
+    const MaterialFit &before = r.rounds[1].materials[0], &last = r.rounds[2].materials[0];
+    const MoveInStandardErrors move = moveInStandardErrors(before, last);
+    EXPECT_GT(move.own, FitOptions().stdTolerance);
+    EXPECT_LT(move.both, FitOptions().stdTolerance);
     expectCovered(r.materials[0], kTruth);
 }
 
