@@ -68,10 +68,11 @@ struct RoundPathNoise {
     double pathFactor = 1;
 };
 
-// Whether a round recorded at `last`'s estimate with `pathFactor` paths settled there too: as
+// Whether a round recorded at `last`'s estimate with more paths, `pathFactor`, settled there: as
 // precise as FitOptions::precision asks, and moved by less than stdTolerance times its own
 // standard errors (`noise`) and `last`'s path noise together. After the paths grew its own are
-// the smaller part of that move's noise (docs/design/fitter.md, "After the paths grew").
+// the smaller part of that move's noise; `last` need not have settled, only resolved its estimate
+// (docs/design/fitter.md, "After the paths grew").
 template <int P>
 bool settledAgain(const std::vector<Eigen::Matrix<double, P, 1>>& before,
                   const std::vector<Eigen::Matrix<double, P, 1>>& after,

@@ -300,9 +300,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         std::vector<MaterialFit> converged, probe;
     };
     std::optional<Unreturned> unreturned;
-    bool vouched = false;         // the fit ends at a converged estimate its probe came back to
-    RoundPathNoise settledRound;  // the last round, if it settled
-    RoundPathNoise lastRound;     // the last round's path noise, where its recordings resolve it
+    bool vouched = false;          // the fit ends at a converged estimate its probe came back to
+    RoundPathNoise previousRound;  // the last round's path noise, where its recordings resolve it
     if (rerecords)
         requireMemory(leastFirstRoundBytes(observations), fitMemoryAvailable(options.memoryLimit),
                       fmt::format("the fit's first round ({} bytes of fit state and two "
@@ -356,15 +355,15 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             for (std::vector<double>& block : noise) std::fill(block.begin(), block.end(), 0.0);
         // Recorded with the last round's paths: the move from its estimate has both rounds' path
         // noise, the image's being common to both (docs/design/fitter.md, "At equal paths").
-        else if (!probed && recordFactor == lastRound.pathFactor)
-            addPathNoise(noise, lastRound.pathNoise);
+        else if (!probed && recordFactor == previousRound.pathFactor)
+            addPathNoise(noise, previousRound.pathNoise);
         const Estimate solved = estimateOf(out, theta, options.fitExposure);
         // Exact sets (the same list as both recordings) give the same problem every round: the
         // solver's own convergence is the answer.
         const auto before = params.naturalBlocks(recorded), after = params.naturalBlocks(solved);
         const bool settled = withinTolerance<P>(before, after, noise, options) ||
                              (exact && out.solverConverged) ||
-                             (!probed && settledAgain<P>(before, after, noise, settledRound, out,
+                             (!probed && settledAgain<P>(before, after, noise, previousRound, out,
                                                          params, options, recordFactor));
         // A round that did not settle by more than the precision target tolerates.
         const bool movedPast =
@@ -404,10 +403,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         result.rmse = out.rmse;
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
-        lastRound = round > 0 && !probed && !exact && allResolved(out.materials)
-                        ? RoundPathNoise{pathNoise(out.naturalStd, out.pathShare), recordFactor}
-                        : RoundPathNoise{};
-        settledRound = settled ? lastRound : RoundPathNoise{};
+        previousRound = round > 0 && !probed && !exact && allResolved(out.materials)
+                            ? RoundPathNoise{pathNoise(out.naturalStd, out.pathShare), recordFactor}
+                            : RoundPathNoise{};
         const bool stop = solveOptions.stopRequested();
         if (probeBack) {
             probed->rounds = std::move(result.rounds);
