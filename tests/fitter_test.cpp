@@ -964,6 +964,18 @@ TEST(Fitter, ProbeThatDoesNotComeBackInTheLastRoundLeavesTheConvergedEstimateUnv
 // round's paths: the estimate jumps between two states and never settles. Rounds that do not
 // settle record twice the paths of the last, up to 64 times the first round's, and the fit
 // settles once the paths resolve the lobe.
+// Recording `recording` of `scene` (its own split of the paths), its rounds seeing the lobe broader
+// and sharper by turns: log cos times 1 + flipBy, then 1 - flipBy.
+PathSet flippedPaths(const SphereScene& scene, int recording, double flipBy) {
+    SphereScene s = scene;
+    s.split = recording + 1;
+    PathSet ps = makePaths(s);
+    const float flip = float(recording / 2 % 2 == 0 ? 1 + flipBy : 1 - flipBy);
+    if (flipBy != 0)
+        for (PathVertex& v : ps.vertices) v.logCos *= flip;
+    return ps;
+}
+
 TEST(Fitter, RoundsThatDoNotSettleRecordMorePaths) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
@@ -973,13 +985,7 @@ TEST(Fitter, RoundsThatDoNotSettleRecordMorePaths) {
     const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
                                     const std::vector<float>&, double pathFactor) {
         if (recording % 2 == 0) pathFactors.push_back(pathFactor);
-        SphereScene s = scene;
-        s.split = recording + 1;
-        PathSet ps = makePaths(s);
-        const float flip = float(recording / 2 % 2 == 0 ? 1 + flipBy : 1 - flipBy);
-        if (pathFactor < sparseBelow)
-            for (PathVertex& v : ps.vertices) v.logCos *= flip;
-        return ps;
+        return flippedPaths(scene, recording, pathFactor < sparseBelow ? flipBy : 0.0);
     };
     const PhongMaterial start = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 200);
     FitOptions options;
@@ -1133,13 +1139,8 @@ TEST(Fitter, AMoveAfterAnUnsettledRoundIsJudgedByBothRoundsPathNoise) {
     const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
                                     const std::vector<float>&, double pathFactor) {
         if (recording % 2 == 0) pathFactors.push_back(pathFactor);
-        SphereScene s = scene;
-        s.split = recording + 1;
-        PathSet ps = makePaths(s);
         // Rounds at the first round's paths see the lobe 30% broader or sharper, by turns.
-        const float flip = recording / 2 % 2 == 0 ? 1.3f : 0.7f;
-        if (pathFactor < 2)
-            for (PathVertex& v : ps.vertices) v.logCos *= flip;
+        PathSet ps = flippedPaths(scene, recording, pathFactor < 2 ? 0.3 : 0.0);
         std::mt19937 rng(11 + unsigned(recording));
         std::normal_distribution<float> noise(0, recording < 8 ? 0.05f : 0.002f);
         for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
