@@ -959,11 +959,6 @@ TEST(Fitter, ProbeThatDoesNotComeBackInTheLastRoundLeavesTheConvergedEstimateUnv
     EXPECT_EQ(unprobed.materials[0].n, r.materials[0].n);
 }
 
-// Recordings too sparse to tell two lobes apart, modelled as each round's paths seeing the lobe 30%
-// sharper and broader in turn while the recorder is asked for fewer than 4 times the first
-// round's paths: the estimate jumps between two states and never settles. Rounds that do not
-// settle record twice the paths of the last, up to 64 times the first round's, and the fit
-// settles once the paths resolve the lobe.
 // Recording `recording` of `scene` (its own split of the paths), its rounds seeing the lobe broader
 // and sharper by turns: log cos times 1 + flipBy, then 1 - flipBy.
 PathSet flippedPaths(const SphereScene& scene, int recording, double flipBy) {
@@ -976,6 +971,19 @@ PathSet flippedPaths(const SphereScene& scene, int recording, double flipBy) {
     return ps;
 }
 
+// `paths`' constants times 1 + noise of relative standard deviation `sigma`, drawn from `seed`: an
+// unbiased but noisy recording.
+void addRecordingNoise(PathSet& paths, unsigned seed, double sigma) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> noise(0, float(sigma));
+    for (PathTerm& t : paths.terms) t.constant *= 1 + noise(rng);
+}
+
+// Recordings too sparse to tell two lobes apart, modelled as each round's paths seeing the lobe 30%
+// sharper and broader in turn while the recorder is asked for fewer than 4 times the first
+// round's paths: the estimate jumps between two states and never settles. Rounds that do not
+// settle record twice the paths of the last, up to 64 times the first round's, and the fit
+// settles once the paths resolve the lobe.
 TEST(Fitter, RoundsThatDoNotSettleRecordMorePaths) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
@@ -1047,10 +1055,8 @@ PathRecorder noisyRecorder(const SphereScene& scene, unsigned seed, double sigma
     return [scene, seed, sigma, averaged](int, const std::vector<PhongMaterial>&, int recording,
                                           const std::vector<float>&, double pathFactor) {
         PathSet ps = makePaths(scene);
-        std::mt19937 rng(seed + unsigned(recording));
-        std::normal_distribution<float> noise(
-            0, float(averaged ? sigma / std::sqrt(pathFactor) : sigma));
-        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        addRecordingNoise(ps, seed + unsigned(recording),
+                          averaged ? sigma / std::sqrt(pathFactor) : sigma);
         return ps;
     };
 }
@@ -1141,9 +1147,7 @@ TEST(Fitter, AMoveAfterAnUnsettledRoundIsJudgedByBothRoundsPathNoise) {
         if (recording % 2 == 0) pathFactors.push_back(pathFactor);
         // Rounds at the first round's paths see the lobe 30% broader or sharper, by turns.
         PathSet ps = flippedPaths(scene, recording, pathFactor < 2 ? 0.3 : 0.0);
-        std::mt19937 rng(11 + unsigned(recording));
-        std::normal_distribution<float> noise(0, recording < 8 ? 0.05f : 0.002f);
-        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        addRecordingNoise(ps, 11 + unsigned(recording), recording < 8 ? 0.05f : 0.002f);
         return ps;
     };
     const FitResult r = fitRoundsAlone(record, 0.01, 200);
@@ -1168,13 +1172,12 @@ TEST(Fitter, AMoveAtEqualPathsIsJudgedByBothRoundsPathNoise) {
     const PathRecorder noisyFirst = [scene](int, const std::vector<PhongMaterial>&, int recording,
                                             const std::vector<float>&, double) {
         PathSet ps = makePaths(scene);
-        std::mt19937 rng(7 + unsigned(recording));
         // Each round (two recordings) ten times less noisy than the last, from round 2 on as
         // noisy as round 2.
-        std::normal_distribution<float> noise(0, recording < 2   ? 0.3f
-                                                 : recording < 4 ? 0.03f
-                                                                 : 0.003f);
-        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        addRecordingNoise(ps, 7 + unsigned(recording),
+                          recording < 2   ? 0.3f
+                          : recording < 4 ? 0.03f
+                                          : 0.003f);
         return ps;
     };
     // A precision met from the first round: the paths never grow.
@@ -1213,9 +1216,7 @@ TEST(Fitter, StopRequestEndsTheFitAfterTheRoundUnderWayWithItsEstimate) {
                                     const std::vector<float>&, double) {
         stop = stop || recording == 3;  // the signal comes while round 1 records its second set
         PathSet ps = makePaths(scene);
-        std::mt19937 rng(200 + recording);
-        std::normal_distribution<float> noise(0, 0.1f);
-        for (PathTerm& t : ps.terms) t.constant *= 1 + noise(rng);
+        addRecordingNoise(ps, unsigned(200 + recording), 0.1f);
         return ps;
     };
     FitOptions options;
