@@ -105,6 +105,9 @@ struct FitRound {
     // Recorded at a sharper lobe than the converged estimate before it (sharper_probe.h); if its
     // lobes came back, the result is that estimate's.
     bool probe = false;
+    // The rounds, this one the last, whose estimates the estimate after it pools
+    // (pooled_rounds.h): 1 where it is this round's own.
+    int pooledRounds = 1;
 };
 
 // The command line's --precision (fit, bench fit, demo): recorded fits spend paths until every free

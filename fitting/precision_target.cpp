@@ -7,16 +7,6 @@
 
 namespace phongfit {
 
-namespace {
-
-// What a relative precision is taken of: kd and ks max(value, kPrecisionFloor), log n 1.
-template <int P>
-double precisionScale(int i, double value) {
-    return i == BlockLayout<P>::kLogN ? 1.0 : reflectancePrecisionScale(value);
-}
-
-}  // namespace
-
 template <int P>
 std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const Linearization<P>& at,
                                                 const Instruments<P>* instruments,

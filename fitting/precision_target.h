@@ -32,6 +32,13 @@ inline double reflectancePrecisionScale(double value) {
     return std::max(std::abs(value), kPrecisionFloor);
 }
 
+// What a relative precision is taken of: kd and ks max(value, kPrecisionFloor), log n 1 (`i`, a
+// block's natural coordinate; `value`, its value).
+template <int P>
+double precisionScale(int i, double value) {
+    return i == BlockLayout<P>::kLogN ? 1.0 : reflectancePrecisionScale(value);
+}
+
 // Per block, the share of each parameter's variance that is the recordings' own noise (the rest is
 // the image's), at the linearization `at` of a round's instrumental-variables solution `analysis`:
 // the same sandwich as the standard errors' with each pixel's moment W_B Z_B^T r_A + W_A Z_A^T r_B

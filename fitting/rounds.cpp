@@ -20,6 +20,7 @@
 #include "parameter_state.h"
 #include "path_growth.h"
 #include "path_importance.h"
+#include "pooled_rounds.h"
 #include "precision_target.h"
 #include "round_paths.h"
 #include "round_scatter.h"
@@ -43,6 +44,9 @@ bool imageNoiseMeetsPrecision(const std::vector<MaterialFit>& materials, double 
     }
     return true;
 }
+
+// A round added to a pool records at least the pool's paths over this.
+constexpr double kLeastPoolGrowth = 4;
 
 // The most paths, relative to the first round's, that rounds which do not settle grow to (the
 // default 4 paths a pixel become 256). Cells of the recovery matrix that flipped between two states
@@ -302,6 +306,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     std::optional<Unreturned> unreturned;
     bool vouched = false;          // the fit ends at a converged estimate its probe came back to
     RoundPathNoise previousRound;  // the last round's path noise, where its recordings resolve it
+    // The rounds that settled at the estimate since it last moved (pooled_rounds.h), if any.
+    std::optional<PooledRounds<P>> pool;
     if (rerecords)
         requireMemory(leastFirstRoundBytes(observations), fitMemoryAvailable(options.memoryLimit),
                       fmt::format("the fit's first round ({} bytes of fit state and two "
@@ -355,16 +361,25 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             for (std::vector<double>& block : noise) std::fill(block.begin(), block.end(), 0.0);
         // Recorded with the last round's paths: the move from its estimate has both rounds' path
         // noise, the image's being common to both (docs/design/fitter.md, "At equal paths").
-        else if (!probed && recordFactor == previousRound.pathFactor)
+        else if (!probed && recordFactor <= previousRound.pathFactor)
             addPathNoise(noise, previousRound.pathNoise);
         const Estimate solved = estimateOf(out, theta, options.fitExposure);
         // Exact sets (the same list as both recordings) give the same problem every round: the
         // solver's own convergence is the answer.
         const auto before = params.naturalBlocks(recorded), after = params.naturalBlocks(solved);
+        // Recorded at a pool's estimate (pooled_rounds.h) and moved by less than the noise of
+        // the two (poolingNoise): at the same point, and so joins the pool.
+        const bool poolsRound = round > 0 && !probed && !exact && rerecords;
+        std::optional<PooledRounds<P>> own;
+        if (poolsRound) own = poolOfRound<P>(out, params, recordFactor);
+        const bool nearPool =
+            pool && own && poolable<P>(*pool, *own) &&
+            withinTolerance<P>(before, after, poolingNoise<P>(*pool, *own), options);
         const bool settled = withinTolerance<P>(before, after, noise, options) ||
                              (exact && out.solverConverged) ||
                              (!probed && settledAgain<P>(before, after, noise, previousRound, out,
-                                                         params, options, recordFactor));
+                                                         params, options, recordFactor)) ||
+                             nearPool;
         // A round that did not settle by more than the precision target tolerates.
         const bool movedPast =
             options.precision > 0 && movedPastTarget<P>(params, before, after, options.precision);
@@ -391,6 +406,21 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         malloc_trim(0);  // the solver's many small blocks leave the resident set
 
         FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out);
+        // A round that settled at the pool's estimate joins it; one that moved, or the first
+        // round recorded at an estimate, starts a pool of its own.
+        if (poolsRound && allResolved(out.materials)) {
+            if (nearPool) {
+                pool = pooled<P>(*pool, *own);
+                adoptPool<P>(*pool, params, out);
+            } else {
+                pool = std::move(own);
+            }
+        } else {
+            pool.reset();
+        }
+        r.pooledRounds = pool ? pool->rounds : 1;
+        // The pool the next round may join, if any: its paths are what that round adds to.
+        const PooledRounds<P>* joinable = pool && preciseEnoughToPool<P>(*pool) ? &*pool : nullptr;
         r.recordSeconds = recordSeconds;
         r.programBytes = programBytes;
         r.timeSeconds = secondsSince(roundBegin);
@@ -404,7 +434,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         result.pixelsUsed = out.pixelsUsed;
         result.pixelsLeftOut = out.leftOut;
         previousRound = round > 0 && !probed && !exact && allResolved(out.materials)
-                            ? RoundPathNoise{pathNoise(out.naturalStd, out.pathShare), recordFactor}
+                            ? RoundPathNoise{pathNoise(out.naturalStd, out.pathShare),
+                                             joinable ? joinable->pathFactor : recordFactor}
                             : RoundPathNoise{};
         const bool stop = solveOptions.stopRequested();
         if (probeBack) {
@@ -441,7 +472,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
         bool importanceTaken = false;        // the next round's importance, already at theta
         if (result.converged) {
-            const Settled next = settle<P>(result, out, params, options, recordFactor, !exact,
+            const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
+            const Settled next = settle<P>(result, out, params, options, pooledFactor, !exact,
                                            rerecords && options.recordingFollowsEstimate && !exact,
                                            round + 1 == maxRounds);
             if (next.stop) break;
@@ -466,10 +498,23 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 result.stopReason = "rounds";
                 growth = kProbePaths / recordFactor;
             } else {
-                growth =
-                    withinTimeBudget(options, secondsSince(begin), r.timeSeconds, next.pathGrowth);
+                // A pool needs only the paths it lacks: at least the first round's and a quarter
+                // of the pool's (a round that adds less gains little and its scatter, of fewer
+                // paths, widens the result; round_scatter.h), at most as many as it holds or
+                // kMostPathGrowth times the first round's, whichever is more.
+                const double asked =
+                    joinable ? std::max({1.0,
+                                         std::min(pooledFactor * (next.pathGrowth - 1),
+                                                  std::max(pooledFactor, kMostPathGrowth)),
+                                         pooledFactor / kLeastPoolGrowth}) /
+                                   recordFactor
+                             : next.pathGrowth;
+                growth = asked > 1
+                             ? withinTimeBudget(options, secondsSince(begin), r.timeSeconds, asked)
+                             : asked;
                 // Never fewer paths than before a probe that did not come back.
-                pathFactor = std::max(pathFactor, recordFactor * growth);
+                pathFactor =
+                    joinable ? recordFactor * growth : std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
             }
         } else if (round >= 2 && !exact && movedPast) {

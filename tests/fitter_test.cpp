@@ -1194,6 +1194,45 @@ TEST(Fitter, AMoveAtEqualPathsIsJudgedByBothRoundsPathNoise) {
     expectCovered(r.materials[0], kTruth);
 }
 
+// A round that settles at the last estimate joins the rounds pooled there (pooled_rounds.h): the
+// estimate is their mean weighted by their recordings' noise, and a round asked for more paths
+// records only those the pool lacks. Recordings whose noise goes as one over the square root of
+// the paths, a precision the first rounds are far from.
+TEST(Fitter, RoundsThatSettleArePooledAndTheNextRecordsOnlyWhatThePoolLacks) {
+    const FitResult r = fitRoundsAlone(noisyRecorder(threeLights(), 3, 0.5, true), 0.005);
+    expectCovered(r.materials[0], kTruth);
+    std::size_t last = r.rounds.size() - 1;
+    ASSERT_FALSE(r.rounds[last].probe);
+    const int k = r.rounds[last].pooledRounds;
+    ASSERT_GE(k, 2);
+    // The pool's last round added only paths the pool lacked: at least a quarter of what it held,
+    // and at most as many or 16 times the first round's, whichever is more (not all of them anew,
+    // as the rounds before pooling did).
+    double before = 0;
+    for (std::size_t j = last + 1 - std::size_t(k); j < last; ++j) before += r.rounds[j].pathFactor;
+    EXPECT_GE(r.rounds[last].pathFactor, before / 4);
+    EXPECT_LE(r.rounds[last].pathFactor, std::max(before, 16.0));
+    // The estimate is a weighted mean of the pool's rounds: within their range in every
+    // parameter, and not the last round's own.
+    const auto range = [&](auto value) {
+        double lo = 1e300, hi = -1e300;
+        for (std::size_t j = last + 1 - std::size_t(k); j <= last; ++j) {
+            lo = std::min(lo, value(r.rounds[j].materials[0]));
+            hi = std::max(hi, value(r.rounds[j].materials[0]));
+        }
+        return std::pair{lo, hi};
+    };
+    for (int c = 0; c < 3; ++c) {
+        const auto [lo, hi] = range([c](const MaterialFit& m) { return m.kd[c]; });
+        EXPECT_GE(r.materials[0].kd[c], lo - 1e-12);
+        EXPECT_LE(r.materials[0].kd[c], hi + 1e-12);
+    }
+    const auto [lo, hi] = range([](const MaterialFit& m) { return m.n; });
+    EXPECT_GE(r.materials[0].n, lo * (1 - 1e-12));
+    EXPECT_LE(r.materials[0].n, hi * (1 + 1e-12));
+    EXPECT_NE(r.materials[0].n, r.rounds[last].materials[0].n);
+}
+
 // Round 0 records at the start, not at an estimate: its move from the start is no difference
 // between two estimates, and within a few standard errors of it (here the start is the truth) the
 // fit does not stop there. Round 1's move from round 0's estimate is, and the fit stops.

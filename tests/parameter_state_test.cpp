@@ -5,19 +5,15 @@
 #include <cmath>
 #include <vector>
 
+#include "grey_material.h"
+
 namespace phongfit {
 namespace {
 
 using L = BlockLayout<kRgbBlock>;
 constexpr int P = kRgbBlock;
 
-PhongMaterial material(double kd, double ks, double n) {
-    PhongMaterial m;
-    m.kd = Color3::Constant(kd);
-    m.ks = Color3::Constant(ks);
-    m.n = n;
-    return m;
-}
+PhongMaterial material(double kd, double ks, double n) { return test::greyMaterial(kd, ks, n); }
 
 TEST(ParameterState, MaterialsThenTheExposureAsBlocksOfTheirOwnKind) {
     const ParameterState<P> without({material(0.3, 0.2, 50)}, false);

@@ -71,6 +71,7 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
         rounds.push_back({{"round", r.round},
                           {"paths", r.paths},
                           {"path_factor", r.pathFactor},
+                          {"pooled_rounds", r.pooledRounds},
                           {"probe", r.probe},
                           {"time_s", r.timeSeconds},
                           {"record_time_s", r.recordSeconds},
