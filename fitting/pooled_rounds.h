@@ -73,8 +73,9 @@ template <int P>
 PooledRounds<P> pooled(const PooledRounds<P>& pool, const PooledRounds<P>& round);
 
 // Moves `params` to the pool's estimate and puts it into `out`: its materials (with the pool's
-// image noise, and `out`'s unconstrained parameters), exposure, standard errors and their
-// recordings' share.
+// image noise, and `out`'s unconstrained parameters), exposure, standard errors (the recordings'
+// variance widened by Birge's ratio, max(1, chiSquare / (rounds - 1)), plus the image's) and
+// their recordings' share.
 template <int P>
 void adoptPool(const PooledRounds<P>& pool, ParameterState<P>& params, RoundOutcome& out);
 
