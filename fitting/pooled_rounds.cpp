@@ -101,6 +101,14 @@ PooledRounds<P> pooled(const PooledRounds<P>& pool, const PooledRounds<P>& round
     return sum;
 }
 
+double pathsThePoolLacks(double poolFactor, double pathGrowth) {
+    // A round added to a pool records at least the pool's paths over this.
+    constexpr double kLeastPoolGrowth = 4;
+    return std::max({1.0,
+                     std::min(poolFactor * (pathGrowth - 1), std::max(poolFactor, kMostPathGrowth)),
+                     poolFactor / kLeastPoolGrowth});
+}
+
 template <int P>
 void adoptPool(const PooledRounds<P>& pool, ParameterState<P>& params, RoundOutcome& out) {
     for (std::size_t b = 0; b < pool.estimate.size(); ++b) {

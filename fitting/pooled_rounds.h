@@ -72,6 +72,13 @@ std::vector<std::vector<double>> poolingNoise(const PooledRounds<P>& pool,
 template <int P>
 PooledRounds<P> pooled(const PooledRounds<P>& pool, const PooledRounds<P>& round);
 
+// The paths, relative to the first round's, that the next round at a pool of `poolFactor` paths
+// records where the precision plan asks for `pathGrowth` times the pool's: the paths the pool
+// lacks, at least the first round's and a quarter of the pool's (a round that adds less gains
+// little, and its scatter, of fewer paths, widens the result; round_scatter.h), at most as many
+// as the pool holds or kMostPathGrowth times the first round's, whichever is more.
+double pathsThePoolLacks(double poolFactor, double pathGrowth);
+
 // Moves `params` to the pool's estimate and puts it into `out`: its materials (with the pool's
 // image noise, and `out`'s unconstrained parameters), exposure, standard errors (the recordings'
 // variance widened by Birge's ratio, max(1, chiSquare / (rounds - 1)), plus the image's) and

@@ -45,9 +45,6 @@ bool imageNoiseMeetsPrecision(const std::vector<MaterialFit>& materials, double 
     return true;
 }
 
-// A round added to a pool records at least the pool's paths over this.
-constexpr double kLeastPoolGrowth = 4;
-
 // The most paths, relative to the first round's, that rounds which do not settle grow to (the
 // default 4 paths a pixel become 256). Cells of the recovery matrix that flipped between two states
 // at 4 paths settled by 64 (docs/design/fitter.md, "Rounds that do not settle").
@@ -370,11 +367,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // Recorded at a pool's estimate (pooled_rounds.h) and moved by less than the noise of
         // the two (poolingNoise): at the same point, and so joins the pool.
         const bool poolsRound = round > 0 && !probed && !exact && rerecords;
-        std::optional<PooledRounds<P>> own;
-        if (poolsRound) own = poolOfRound<P>(out, params, recordFactor);
-        const bool nearPool =
-            pool && own && poolable<P>(*pool, *own) &&
-            withinTolerance<P>(before, after, poolingNoise<P>(*pool, *own), options);
+        bool nearPool = false;
+        if (poolsRound && pool) {
+            const PooledRounds<P> own = poolOfRound<P>(out, params, recordFactor);
+            nearPool = poolable<P>(*pool, own) &&
+                       withinTolerance<P>(before, after, poolingNoise<P>(*pool, own), options);
+        }
         const bool settled = withinTolerance<P>(before, after, noise, options) ||
                              (exact && out.solverConverged) ||
                              (!probed && settledAgain<P>(before, after, noise, previousRound, out,
@@ -407,10 +405,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
 
         FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out);
         // A round that settled at the pool's estimate joins it; one that moved, or the first
-        // round recorded at an estimate, starts a pool of its own.
+        // round recorded at an estimate, starts a pool of its own. Both as lobe confirmation left
+        // the round: it may have held a parameter the pool has free.
         if (poolsRound && allResolved(out.materials)) {
-            if (nearPool) {
-                pool = pooled<P>(*pool, *own);
+            PooledRounds<P> own = poolOfRound<P>(out, params, recordFactor);
+            if (nearPool && poolable<P>(*pool, own)) {
+                pool = pooled<P>(*pool, own);
                 adoptPool<P>(*pool, params, out);
             } else {
                 pool = std::move(own);
@@ -498,16 +498,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 result.stopReason = "rounds";
                 growth = kProbePaths / recordFactor;
             } else {
-                // A pool needs only the paths it lacks: at least the first round's and a quarter
-                // of the pool's (a round that adds less gains little and its scatter, of fewer
-                // paths, widens the result; round_scatter.h), at most as many as it holds or
-                // kMostPathGrowth times the first round's, whichever is more.
+                // A pool needs only the paths it lacks.
                 const double asked =
-                    joinable ? std::max({1.0,
-                                         std::min(pooledFactor * (next.pathGrowth - 1),
-                                                  std::max(pooledFactor, kMostPathGrowth)),
-                                         pooledFactor / kLeastPoolGrowth}) /
-                                   recordFactor
+                    joinable ? pathsThePoolLacks(pooledFactor, next.pathGrowth) / recordFactor
                              : next.pathGrowth;
                 growth = asked > 1
                              ? withinTimeBudget(options, secondsSince(begin), r.timeSeconds, asked)

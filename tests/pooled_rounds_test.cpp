@@ -181,5 +181,18 @@ TEST(PooledRounds, TheChiSquareOfRoundsAtOnePointHasItsDegreesOfFreedom) {
     }
 }
 
+// The next round at a pool records the paths the pool lacks (the plan's growth less the pool),
+// bounded below by the first round's and a quarter of the pool's, above by the pool's own or
+// 16 times the first round's, whichever is more.
+TEST(PooledRounds, TheNextRoundRecordsOnlyThePathsThePoolLacks) {
+    EXPECT_DOUBLE_EQ(pathsThePoolLacks(4, 2), 4);       // the plan asks for the pool again
+    EXPECT_DOUBLE_EQ(pathsThePoolLacks(4, 3.5), 10);    // 14 asked, 4 held
+    EXPECT_DOUBLE_EQ(pathsThePoolLacks(4, 10), 16);     // at most 16x the first round's
+    EXPECT_DOUBLE_EQ(pathsThePoolLacks(32, 10), 32);    // or the pool's, if more
+    EXPECT_DOUBLE_EQ(pathsThePoolLacks(32, 1.1), 8);    // at least a quarter of the pool's
+    EXPECT_DOUBLE_EQ(pathsThePoolLacks(2, 1.1), 1);     // and at least the first round's
+    EXPECT_DOUBLE_EQ(pathsThePoolLacks(64, 1.25), 16);  // 80 asked, 64 held
+}
+
 }  // namespace
 }  // namespace phongfit
