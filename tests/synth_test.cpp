@@ -209,6 +209,30 @@ TEST(SynthConfig, OutsideConfigHoldsEveryCell) {
     }
 }
 
+// The second set outside the matrix (README, "Outside the matrix") reads: 4 lights x 5 exponents x
+// 3 materials, none of them the matrix's or the first outside set's, every kd + ks below 1.
+TEST(SynthConfig, SecondOutsideConfigHoldsEveryCell) {
+    const SynthConfig config =
+        expectGridConfig("outside_second.json", 4, 60, {3, 60, 700, 8000, 60000});
+    std::vector<GridSpec> others;
+    for (const char* file : {"matrix.json", "outside.json"})
+        for (const GroupConfig& g :
+             loadSynthConfig(PHONGFIT_CONFIGS_DIR "/" + std::string(file)).groups)
+            if (g.grid) others.push_back(*g.grid);
+    for (const GroupConfig& g : config.groups) {
+        if (!g.grid) continue;
+        for (const GridSpec::Material& m : g.grid->materials) {
+            EXPECT_TRUE(((m.kd + m.ks) < 1).all()) << g.name;
+            for (const GridSpec& other : others)
+                for (const GridSpec::Material& o : other.materials)
+                    EXPECT_FALSE((m.kd == o.kd).all() && (m.ks == o.ks).all()) << g.name;
+        }
+        for (const GridSpec& other : others)
+            for (const double n : g.grid->n)
+                EXPECT_EQ(std::count(other.n.begin(), other.n.end(), n), 0) << g.name;
+    }
+}
+
 TEST_F(Synth, BakedSceneKeepsTheFileAndSetsTheDefaults) {
     const std::string in = kScenes + "/sphere_orbit.xml";
     const fs::path out = path("baked.xml");
