@@ -365,7 +365,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // solver's own convergence is the answer.
         const auto before = params.naturalBlocks(recorded), after = params.naturalBlocks(solved);
         // Recorded at a pool's estimate (pooled_rounds.h) and moved by less than the noise of
-        // the two (poolingNoise): at the same point, and so joins the pool.
+        // the two (poolingNoise): at the same point, and so settled. Whether it joins the pool is
+        // decided once lobe confirmation is done (below).
         const bool poolsRound = round > 0 && !probed && !exact && rerecords;
         bool nearPool = false;
         if (poolsRound && pool) {
