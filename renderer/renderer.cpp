@@ -100,8 +100,17 @@ RenderResult Renderer::render(const RenderOptions& options) const {
         *sampler, {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, options.mis});
 
     const int width = camera_.width(), height = camera_.height();
-    RgbFilm film(width, height, spp);
-    Progress progress("render", std::uint64_t(spp) * width * height, "samples", options.quiet);
+    const std::size_t pixels = std::size_t(width) * std::size_t(height);
+    if (!options.rendered.empty() && options.rendered.size() != pixels)
+        throw Error(fmt::format("render: {} rendered-pixel flags given for a {}x{} film",
+                                options.rendered.size(), width, height));
+    const std::size_t renderedPixels =
+        options.rendered.empty()
+            ? pixels
+            : std::size_t(std::count_if(options.rendered.begin(), options.rendered.end(),
+                                        [](std::uint8_t r) { return r != 0; }));
+    RgbFilm film(width, height, spp, options.rendered);
+    Progress progress("render", std::uint64_t(spp) * renderedPixels, "samples", options.quiet);
     TileLoop loop = tileLoop(integrator, {0, 0, width, height}, options.pixelSampler, options.seed,
                              options.threads, spp);
     loop.progress = &progress;

@@ -32,6 +32,10 @@ struct RenderOptions {
     int maxDepth = -2;  // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
     bool mis = true;
     bool quiet = false;  // no progress output
+    // Per pixel (width x height): 0 traces no sample there (mean 0, sample count 0), as for the
+    // pixels a fit's comparison greys out; empty: every pixel. Viewed, not copied: the caller keeps
+    // it alive through render().
+    std::span<const std::uint8_t> rendered;
 };
 
 struct RenderResult {

@@ -4,10 +4,11 @@
 
 namespace phongfit {
 
-RgbFilm::RgbFilm(int width, int height, int spp)
+RgbFilm::RgbFilm(int width, int height, int spp, std::span<const std::uint8_t> rendered)
     : width_(width),
       height_(height),
       spp_(spp),
+      rendered_(rendered),
       sum_(3 * std::size_t(width) * height, 0.0),
       sumSq_(3 * std::size_t(width) * height, 0.0),
       count_(std::size_t(width) * height, 0) {}

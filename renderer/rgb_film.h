@@ -12,9 +12,10 @@ namespace phongfit {
 
 class RgbFilm {
 public:
-    RgbFilm(int width, int height, int spp);
+    // `rendered`: per pixel, 0 where it takes no sample (RenderOptions::rendered); empty: none.
+    RgbFilm(int width, int height, int spp, std::span<const std::uint8_t> rendered = {});
 
-    int samples(std::uint32_t) const { return spp_; }
+    int samples(std::uint32_t p) const { return rendered_.empty() || rendered_[p] ? spp_ : 0; }
 
     class Sample {
     public:
@@ -38,6 +39,7 @@ private:
     void add(std::uint32_t pixel, const Color3& radiance);
 
     int width_, height_, spp_;
+    std::span<const std::uint8_t> rendered_;
     std::vector<double> sum_, sumSq_;  // 3 per pixel
     std::vector<std::uint32_t> count_;
 };

@@ -179,6 +179,8 @@ cv::Mat comparison(const SceneView& v, const std::vector<PhongMaterial>& fitted,
     options.threads = recording.threads;
     options.maxDepth = v.maxDepth;
     options.quiet = true;
+    // Only the compared pixels: the others are grey in the predicted and error columns.
+    options.rendered = v.observation.valid;
     const RenderResult rendered = Renderer(std::move(scene)).render(options);
     ComparisonPanels panels;
     panels.width = v.observation.width;
