@@ -26,6 +26,7 @@
 #include "round_scatter.h"
 #include "round_solver.h"
 #include "sharper_probe.h"
+#include "time_budget.h"
 
 namespace phongfit {
 
@@ -99,22 +100,15 @@ bool fitsMemory(const FitResult& result, double growth, std::size_t limit) {
     return !available || need <= double(*available);
 }
 
-// `growth` of the next round's paths, capped so that, at `roundSeconds` for the paths as they were,
-// the round ends within FitOptions::timeBudget, but never below 1.
-double withinTimeBudget(const FitOptions& options, double elapsed, double roundSeconds,
-                        double growth) {
-    if (options.timeBudget <= 0) return growth;
-    return std::clamp((options.timeBudget - elapsed) / roundSeconds, 1.0, growth);
-}
-
 // Growth of FitOptions::precision's paths after a round that did not settle: twice as many, up to
 // kUnsettledPaths times the first round's, as far as the time budget and memory allow (a round
 // that would not fit is not grown, rather than not started). `next`: the next round's paths
 // against the last one's before this growth.
 double unsettledGrowth(const FitResult& result, const FitOptions& options, double elapsed,
                        double pathFactor, double next) {
-    double growth = withinTimeBudget(options, elapsed, next * result.rounds.back().timeSeconds,
-                                     std::max(1.0, std::min(2.0, kUnsettledPaths / pathFactor)));
+    double growth =
+        withinTimeBudget(options.timeBudget, elapsed, next * result.rounds.back().timeSeconds,
+                         std::max(1.0, std::min(2.0, kUnsettledPaths / pathFactor)));
     while (growth > 1 && !fitsMemory(result, next * growth, options.memoryLimit))
         growth = std::max(1.0, growth / 2);
     return growth;
@@ -313,10 +307,16 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     for (int round = 0; round < maxRounds; ++round) {
         result.stopReason = "rounds";
         const char* cut = nullptr;  // what stops the rounds before this one
-        if (round > 0 && options.timeBudget > 0 &&
-            secondsSince(begin) + growth * result.rounds.back().timeSeconds > options.timeBudget)
-            cut = "time budget";
-        else if (round > 0 && rerecords && !fitsMemory(result, growth, options.memoryLimit))
+        if (round > 0) {
+            const BudgetedRound next =
+                budgetedRound(options.timeBudget, secondsSince(begin),
+                              result.rounds.back().timeSeconds, growth, !probed);
+            pathFactor *= next.growth / growth;
+            growth = next.growth;
+            if (!next.starts) cut = "time budget";
+        }
+        if (cut == nullptr && round > 0 && rerecords &&
+            !fitsMemory(result, growth, options.memoryLimit))
             cut = "memory";
         if (cut != nullptr) {
             if (unvouched) {
@@ -503,9 +503,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 const double asked =
                     joinable ? pathsThePoolLacks(pooledFactor, next.pathGrowth) / recordFactor
                              : next.pathGrowth;
-                growth = asked > 1
-                             ? withinTimeBudget(options, secondsSince(begin), r.timeSeconds, asked)
-                             : asked;
+                growth = asked > 1 ? withinTimeBudget(options.timeBudget, secondsSince(begin),
+                                                      r.timeSeconds, asked)
+                                   : asked;
                 // Never fewer paths than before a probe that did not come back.
                 pathFactor =
                     joinable ? recordFactor * growth : std::max(pathFactor, recordFactor * growth);
