@@ -12,7 +12,8 @@ namespace phongfit {
 
 class RgbFilm {
 public:
-    // `rendered`: per pixel, 0 where it takes no sample (RenderOptions::rendered); empty: none.
+    // `rendered`: per pixel, 0 where it takes no sample (RenderOptions::rendered); empty: every
+    // pixel takes `spp`.
     RgbFilm(int width, int height, int spp, std::span<const std::uint8_t> rendered = {});
 
     int samples(std::uint32_t p) const { return rendered_.empty() || rendered_[p] ? spp_ : 0; }
