@@ -101,14 +101,12 @@ bool fitsMemory(const FitResult& result, double growth, std::size_t limit) {
 }
 
 // Growth of FitOptions::precision's paths after a round that did not settle: twice as many, up to
-// kUnsettledPaths times the first round's, as far as the time budget and memory allow (a round
-// that would not fit is not grown, rather than not started). `next`: the next round's paths
-// against the last one's before this growth.
-double unsettledGrowth(const FitResult& result, const FitOptions& options, double elapsed,
-                       double pathFactor, double next) {
-    double growth =
-        withinTimeBudget(options.timeBudget, elapsed, next * result.rounds.back().timeSeconds,
-                         std::max(1.0, std::min(2.0, kUnsettledPaths / pathFactor)));
+// kUnsettledPaths times the first round's, as far as memory allows (a round that would not fit is
+// not grown, rather than not started; the time budget shrinks it as it starts). `next`: the next
+// round's paths against the last one's before this growth.
+double unsettledGrowth(const FitResult& result, const FitOptions& options, double pathFactor,
+                       double next) {
+    double growth = std::max(1.0, std::min(2.0, kUnsettledPaths / pathFactor));
     while (growth > 1 && !fitsMemory(result, next * growth, options.memoryLimit))
         growth = std::max(1.0, growth / 2);
     return growth;
@@ -500,12 +498,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 growth = kProbePaths / recordFactor;
             } else {
                 // A pool needs only the paths it lacks.
-                const double asked =
-                    joinable ? pathsThePoolLacks(pooledFactor, next.pathGrowth) / recordFactor
-                             : next.pathGrowth;
-                growth = asked > 1 ? withinTimeBudget(options.timeBudget, secondsSince(begin),
-                                                      r.timeSeconds, asked)
-                                   : asked;
+                growth = joinable ? pathsThePoolLacks(pooledFactor, next.pathGrowth) / recordFactor
+                                  : next.pathGrowth;
                 // Never fewer paths than before a probe that did not come back.
                 pathFactor =
                     joinable ? recordFactor * growth : std::max(pathFactor, recordFactor * growth);
@@ -516,7 +510,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             // travelled from the start (rounds 0 and 1, as for the rounds' scatter): recordings
             // this sparse may keep it jumping between states they cannot tell apart
             // (docs/design/fitter.md, "Rounds that do not settle").
-            pathFactor *= unsettledGrowth(result, options, secondsSince(begin), pathFactor, growth);
+            pathFactor *= unsettledGrowth(result, options, pathFactor, growth);
             growth = pathFactor / recordFactor;
         }
         // The probe round records, and starts its solve, at the sharper lobe, and spends its

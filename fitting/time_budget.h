@@ -19,10 +19,9 @@ struct BudgetedRound {
     bool starts = true;
 };
 
-// The next round, as it is about to start: one grown past what ends within the budget (growth > 1,
-// `shrinkable`) shrinks to withinTimeBudget's growth; one that still cannot end within the budget
-// (at its growth, or at the last round's paths) does not start. Its growth was planned before the
-// round's importance was taken, which takes time too.
+// The next round, as it is about to start (the one place the budget applies): one grown past what
+// ends within the budget (growth > 1, `shrinkable`) shrinks to withinTimeBudget's growth; one that
+// still cannot end within the budget (at its growth, or at the last round's paths) does not start.
 BudgetedRound budgetedRound(double budget, double elapsed, double lastRoundSeconds, double growth,
                             bool shrinkable);
 
