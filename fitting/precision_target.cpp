@@ -27,6 +27,21 @@ std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const L
     return share;
 }
 
+bool meetsPrecision(const std::vector<MaterialFit>& materials, double target, PrecisionOf which) {
+    const bool reported = which == PrecisionOf::Reported;
+    for (const MaterialFit& m : materials) {
+        const Color3& kd = reported ? m.kdStd : m.kdImageStd;
+        const Color3& ks = reported ? m.ksStd : m.ksImageStd;
+        for (int c = 0; c < 3; ++c)
+            if (kd[c] > target * reflectancePrecisionScale(m.kd[c]) ||
+                ks[c] > target * reflectancePrecisionScale(m.ks[c]))
+                return false;
+        const double logN = reported ? m.logNStd : m.logNImageStd;
+        if (logN > target && !m.isUnconstrained("n")) return false;
+    }
+    return true;
+}
+
 template <int P>
 PrecisionPlan planPrecision(const ParameterState<P>& params,
                             const std::vector<std::vector<double>>& naturalStd,

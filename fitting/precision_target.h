@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "analysis.h"
+#include "fitter.h"
 #include "instruments.h"
 #include "objective.h"
 #include "parameter_state.h"
@@ -68,6 +69,15 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
                             const std::vector<std::vector<double>>& naturalStd,
                             const std::vector<std::vector<double>>& pathShare, double target,
                             double pathFactor);
+
+// Which standard errors of a MaterialFit meetsPrecision judges: those the fit reports, or the
+// image's own noise's (kdImageStd, ...).
+enum class PrecisionOf { Reported, ImageNoise };
+
+// Whether `which` standard errors leave every parameter of `materials` as precise as `target`
+// asks, as planPrecision measures it (kd and ks relative to reflectancePrecisionScale, n through
+// log n). An n listed unconstrained is not asked.
+bool meetsPrecision(const std::vector<MaterialFit>& materials, double target, PrecisionOf which);
 
 // Whether some free parameter moved from `before` to `after` (natural coordinates, per block) by
 // more than `target` asks of its standard error (kd, ks: target * max(value, kPrecisionFloor);

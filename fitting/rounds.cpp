@@ -32,20 +32,6 @@ namespace phongfit {
 
 namespace {
 
-// Whether the image's own noise (MaterialFit::kdImageStd, ...) leaves every parameter of
-// `materials` as precise as `target` asks, as planPrecision measures it (kd and ks relative to
-// reflectancePrecisionScale, n through log n).
-bool imageNoiseMeetsPrecision(const std::vector<MaterialFit>& materials, double target) {
-    for (const MaterialFit& m : materials) {
-        for (int c = 0; c < 3; ++c)
-            if (m.kdImageStd[c] > target * reflectancePrecisionScale(m.kd[c]) ||
-                m.ksImageStd[c] > target * reflectancePrecisionScale(m.ks[c]))
-                return false;
-        if (m.logNImageStd > target) return false;
-    }
-    return true;
-}
-
 // The most paths, relative to the first round's, that rounds which do not settle grow to (the
 // default 4 paths a pixel become 256). Cells of the recovery matrix that flipped between two states
 // at 4 paths settled by 64 (docs/design/fitter.md, "Rounds that do not settle").
@@ -536,7 +522,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // The image's own noise, which the sandwich misses where one pixel holds a parameter; a
     // precision it does not allow was the noise floor's.
     if (result.stopReason == "precision" &&
-        !imageNoiseMeetsPrecision(result.materials, options.precision))
+        !meetsPrecision(result.materials, options.precision, PrecisionOf::ImageNoise))
         result.stopReason = "noise floor";
     for (MaterialFit& m : result.materials) applyImageNoise(m);
     for (MaterialFit& m : result.materials) finishExponentUncertainty(m);
@@ -547,6 +533,14 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             result.converged = false;
             result.stopReason = "unresolved";
         }
+    }
+    // The last round met the precision, but the standard errors reported are wider: the rounds'
+    // estimates scatter by more (a move between rounds, or recordings noisier than their round's
+    // standard errors said). The precision asked for is not what the fit can claim.
+    if (result.stopReason == "precision" &&
+        !meetsPrecision(result.materials, options.precision, PrecisionOf::Reported)) {
+        result.converged = false;
+        result.stopReason = "rounds disagree";
     }
     result.timeSeconds = secondsSince(begin);
     result.residentAtStartBytes = residentAtStart;

@@ -23,6 +23,9 @@ std::string notConvergedBecause(const FitResult& result) {
             "the estimate stopped moving, but not every parameter is as precise as --precision "
             "asks after {} rounds (--rounds)",
             result.rounds.size());
+    if (result.stopReason == "rounds disagree")
+        return "the last round was as precise as --precision asks, but the last rounds' "
+               "estimates scatter by more, and the standard errors are raised to that scatter";
     if (result.stopReason == "path cap")
         return fmt::format(
             "the estimate stopped moving, but not every parameter is as precise as --precision "
