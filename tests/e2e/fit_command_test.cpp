@@ -15,6 +15,7 @@
 #include <random>
 
 #include "image.h"
+#include "precision_claim.h"
 #include "subprocess.h"
 
 namespace phongfit {
@@ -93,14 +94,7 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
         EXPECT_TRUE(stop == "rounds" || stop == "precision not met" || stop == "unresolved" ||
                     stop == "rounds disagree")
             << stop;
-    if (stop == "precision") {
-        for (const char* p : {"kd", "ks"})
-            for (int c = 0; c < 3; ++c)
-                EXPECT_LE(m[std::string(p) + "_std"][c].get<double>(),
-                          0.01 * std::max(m[p][c].get<double>(), 0.1))
-                    << p;
-        EXPECT_LE(m["log_n_std"].get<double>(), 0.01);
-    }
+    test::expectPrecisionClaimHolds(report, 0.01);
     EXPECT_FALSE(report.contains("exposure")) << "only with --fit-exposure";
     EXPECT_EQ(report["views"][0]["max_depth"], 2);
     EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1)

@@ -15,6 +15,7 @@
 #include <tuple>
 
 #include "image.h"
+#include "precision_claim.h"
 #include "subprocess.h"
 #include "temp_dir.h"
 
@@ -64,7 +65,13 @@ protected:
         args.insert(args.end(), extra.begin(), extra.end());
         const auto r = test::runProcess(args);
         EXPECT_EQ(r.exitCode, 0) << r.err;
-        return nlohmann::json::parse(std::ifstream(path(name) + "/fit.json"));
+        const auto report = nlohmann::json::parse(std::ifstream(path(name) + "/fit.json"));
+        const auto precision = std::find(extra.begin(), extra.end(), "--precision");
+        test::expectPrecisionClaimHolds(report,
+                                        precision != extra.end() && precision + 1 != extra.end()
+                                            ? std::stod(*(precision + 1))
+                                            : 0.01);
+        return report;
     }
 
     // The recovery matrix's sphere under the 40-degree light (its radius 2.418 at the scene's
