@@ -18,6 +18,16 @@
 namespace phongfit {
 namespace {
 
+// Throws unless a per-pixel list that `command` was given, `count` entries of `what`, holds one
+// entry per pixel of a width x height film and `entriesValid`; `each` names what every entry must
+// be, where that is checked too.
+void checkPerPixel(const char* command, std::size_t count, const char* what, int width, int height,
+                   bool entriesValid = true, const char* each = nullptr) {
+    if (count == std::size_t(width) * std::size_t(height) && entriesValid) return;
+    throw Error(fmt::format("{}: {} {} given for a {}x{} film{}", command, count, what, width,
+                            height, each ? fmt::format(", {}", each) : ""));
+}
+
 // Counts what a path would record, keeping nothing.
 struct CountingSink {
     std::uint64_t terms = 0, vertices = 0;
@@ -101,9 +111,8 @@ RenderResult Renderer::render(const RenderOptions& options) const {
 
     const int width = camera_.width(), height = camera_.height();
     const std::size_t pixels = std::size_t(width) * std::size_t(height);
-    if (!options.rendered.empty() && options.rendered.size() != pixels)
-        throw Error(fmt::format("render: {} rendered-pixel flags given for a {}x{} film",
-                                options.rendered.size(), width, height));
+    if (!options.rendered.empty())
+        checkPerPixel("render", options.rendered.size(), "rendered-pixel flags", width, height);
     const std::size_t renderedPixels =
         options.rendered.empty()
             ? pixels
@@ -183,24 +192,18 @@ RecordResult Renderer::record(const RecordOptions& options) const {
             found = cropped(seesAny(bsdfSeen(options.threads), options.fittedBsdfs),
                             camera_.width(), window);
         const std::span<const std::uint8_t> direct = found.empty() ? options.direct : found;
-        if (direct.size() != pixels)
-            throw Error(fmt::format("record: {} direct-pixel flags given for a {}x{} film",
-                                    direct.size(), width, height));
+        checkPerPixel("record", direct.size(), "direct-pixel flags", width, height);
         for (std::size_t p = 0; p < pixels; ++p)
             if (direct[p]) paths[p] = options.directSpp;
     }
     if (!options.extraPaths.empty()) {
-        if (options.extraPaths.size() != pixels ||
-            *std::min_element(options.extraPaths.begin(), options.extraPaths.end()) < 0)
-            throw Error(
-                fmt::format("record: {} extra path counts given for a {}x{} film, each >= 0",
-                            options.extraPaths.size(), width, height));
+        checkPerPixel("record", options.extraPaths.size(), "extra path counts", width, height,
+                      *std::min_element(options.extraPaths.begin(), options.extraPaths.end()) >= 0,
+                      "each >= 0");
         for (std::size_t p = 0; p < pixels; ++p) paths[p] += options.extraPaths[p];
     }
     if (!options.recorded.empty()) {
-        if (options.recorded.size() != pixels)
-            throw Error(fmt::format("record: {} pixel flags given for a {}x{} film",
-                                    options.recorded.size(), width, height));
+        checkPerPixel("record", options.recorded.size(), "pixel flags", width, height);
         for (std::size_t p = 0; p < pixels; ++p)
             if (!options.recorded[p]) paths[p] = 0;
     }

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "error.h"
+#include "error_of.h"
 #include "image.h"
 #include "render_to_exr.h"
 #include "renderer.h"
@@ -117,7 +118,16 @@ TEST(Recording, PixelsLeftOutRecordNoPathAndTheOthersTheSamePaths) {
         expectSamePixelPaths(all, p, some, p);
     }
     options.recorded = std::span(recorded).first(5);
-    EXPECT_THROW(renderer.record(options), Error);
+    EXPECT_EQ(test::errorOf([&] { renderer.record(options); }),
+              "record: 5 pixel flags given for a 24x24 film");
+    options.recorded = {};
+    options.extraPaths.assign(24 * 24 - 1, 1);
+    EXPECT_EQ(test::errorOf([&] { renderer.record(options); }),
+              "record: 575 extra path counts given for a 24x24 film, each >= 0");
+    options.extraPaths.assign(24 * 24, 1);
+    options.extraPaths[7] = -1;
+    EXPECT_EQ(test::errorOf([&] { renderer.record(options); }),
+              "record: 576 extra path counts given for a 24x24 film, each >= 0");
 }
 
 // directSpp's pixels, given (the fit's map from load time) or found by the recording itself: the
@@ -135,7 +145,8 @@ TEST(Recording, DirectPixelsGivenOrFoundRecordTheSamePaths) {
         EXPECT_EQ(given.pixelPaths[p], direct[p] ? 5u : 1u) << "pixel " << p;
     EXPECT_GT(std::count(direct.begin(), direct.end(), 1), 10);
     options.direct = std::span(direct).first(7);
-    EXPECT_THROW(renderer.record(options), Error);
+    EXPECT_EQ(test::errorOf([&] { renderer.record(options); }),
+              "record: 7 direct-pixel flags given for a 20x20 film");
 }
 
 // A window of the film records, pixel for pixel, the paths the whole film records there; the

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "error.h"
+#include "error_of.h"
 #include "scene_parser.h"
 
 namespace phongfit {
@@ -269,7 +270,8 @@ TEST(Determinism, PixelsLeftOutTakeNoSampleAndTheOthersAreTheFullRenders) {
     EXPECT_GT(*std::max_element(part.rgb.begin(), part.rgb.end()), 0.0f);
     const std::vector<std::uint8_t> wrong(10, 1);
     options.rendered = wrong;
-    EXPECT_THROW(renderer.render(options), Error);
+    EXPECT_EQ(test::errorOf([&] { renderer.render(options); }),
+              "render: 10 rendered-pixel flags given for a 24x24 film");
 }
 
 // At the last vertex that can reflect (here the only one: depth 2), a diffuse surface is lit by
