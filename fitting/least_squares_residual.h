@@ -27,8 +27,8 @@
 #include <utility>
 #include <vector>
 
+#include "evaluation_cache.h"
 #include "material_params.h"
-#include "trial_point_cache.h"
 
 namespace phongfit {
 
@@ -52,23 +52,17 @@ public:
 
     bool Evaluate(double const* const* parameters, double* residuals,
                   double** jacobians) const override {
-        const std::vector<double> y = naturalFromBlocks<P>(parameters, slots_, held_);
-        const bool wantJacobian = wantsJacobian(jacobians, slots_.size());
+        const SumsAt& at = sumsAt(naturalFromBlocks<P>(parameters, slots_, held_));
         const Eigen::Index f = Eigen::Index(free_.size());
         Eigen::Map<Eigen::VectorXd> out(residuals, f + 1);
-        double squares = 0;
-        if (!wantJacobian) {
-            if (trialPoints_.find(y, residuals)) return true;
-            sums_(y.data(), squares, nullptr, nullptr);
+        const double squares = at.squares;
+        if (!wantsJacobian(jacobians, slots_.size())) {
             out.setZero();
             out[f] = std::sqrt(std::max(squares, 0.0));
-            if (!std::isfinite(squares)) return false;
-            trialPoints_.store(y, residuals, int(f + 1));
-            return true;
+            return std::isfinite(squares);
         }
-        Eigen::VectorXd gradient;
-        Eigen::MatrixXd gramian;
-        sums_(y.data(), squares, &gradient, &gramian);
+        const Eigen::VectorXd& gradient = at.gradient;
+        const Eigen::MatrixXd& gramian = at.gramian;
         const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gramian(free_, free_));
         const Eigen::VectorXd& d = eigen.eigenvalues();
         // Directions the data do not see (D ~ 0) carry no gradient either: leave them out.
@@ -98,11 +92,26 @@ public:
     }
 
 private:
+    struct SumsAt {
+        double squares = 0;
+        Eigen::VectorXd gradient;
+        Eigen::MatrixXd gramian;
+    };
+
+    // The sums at y, gradient and Gauss-Newton matrix included, summed once a point
+    // (evaluation_cache.h).
+    const SumsAt& sumsAt(const std::vector<double>& y) const {
+        if (const SumsAt* found = evaluated_.find(y)) return *found;
+        SumsAt at;
+        sums_(y.data(), at.squares, &at.gradient, &at.gramian);
+        return evaluated_.store(y, std::move(at));
+    }
+
     Sums sums_;
     std::vector<std::uint32_t> slots_;
     std::span<const HeldParams> held_;
     std::vector<int> free_;
-    mutable TrialPointCache trialPoints_;
+    mutable EvaluationCache<SumsAt> evaluated_;
 };
 
 }  // namespace phongfit

@@ -18,8 +18,8 @@
 #include <utility>
 #include <vector>
 
+#include "evaluation_cache.h"
 #include "material_params.h"
-#include "trial_point_cache.h"
 
 namespace phongfit {
 
@@ -48,19 +48,11 @@ public:
 
     bool Evaluate(double const* const* parameters, double* residuals,
                   double** jacobians) const override {
-        const std::vector<double> y = naturalFromBlocks<P>(parameters, slots_, held_);
-        const bool wantJacobian = wantsJacobian(jacobians, slots_.size());
-        if (!wantJacobian && trialPoints_.find(y, residuals)) return true;
-        Eigen::VectorXd g;
-        Eigen::MatrixXd dg;
-        moments_(y.data(), g, wantJacobian ? &dg : nullptr);
+        const MomentsAt& at = momentsAt(naturalFromBlocks<P>(parameters, slots_, held_));
         const Eigen::Index rows = Eigen::Index(free_.size());
-        Eigen::Map<Eigen::VectorXd>(residuals, rows) = whitening_ * g(free_);
-        if (!wantJacobian) {
-            trialPoints_.store(y, residuals, int(rows));
-            return true;
-        }
-        const Eigen::MatrixXd whitened = whitening_ * dg(free_, Eigen::all);
+        Eigen::Map<Eigen::VectorXd>(residuals, rows) = whitening_ * at.g(free_);
+        if (!wantsJacobian(jacobians, slots_.size())) return true;
+        const Eigen::MatrixXd whitened = whitening_ * at.dg(free_, Eigen::all);
         for (std::size_t b = 0; b < slots_.size(); ++b) {
             if (jacobians[b] == nullptr) continue;
             const Eigen::Matrix<double, P, P> d =
@@ -73,12 +65,25 @@ public:
     }
 
 private:
+    struct MomentsAt {
+        Eigen::VectorXd g;
+        Eigen::MatrixXd dg;
+    };
+
+    // g and dg/dy at y, summed once a point (evaluation_cache.h).
+    const MomentsAt& momentsAt(const std::vector<double>& y) const {
+        if (const MomentsAt* found = evaluated_.find(y)) return *found;
+        MomentsAt at;
+        moments_(y.data(), at.g, &at.dg);
+        return evaluated_.store(y, std::move(at));
+    }
+
     Moments moments_;
     std::vector<std::uint32_t> slots_;
     std::span<const HeldParams> held_;
     std::vector<int> free_;
     Eigen::MatrixXd whitening_;
-    mutable TrialPointCache trialPoints_;
+    mutable EvaluationCache<MomentsAt> evaluated_;
 };
 
 }  // namespace phongfit

@@ -46,43 +46,55 @@ PhongParams<T> constantParams(const PhongMaterial& m) {
     return p;
 }
 
-// sum += f(logCos) * constant, as addOneVertexTerm with p = packedParams: the Jets' arithmetic
-// written out on their non-zero parts (d/dkd_c = 1 / pi, d/dks_c = the lobe s, d/dlog n = ks_c n
-// ds/dn), the same operations in the same order, so the same bits (1.55x the generic replay's
-// rate, `BM_ReplayJet*`).
-inline void addSeededOneVertexTerm(Color<PackedJet>& sum, const PhongParams<PackedJet>& p,
-                                   float logCos, const Color<float>& constant) {
-    const double n = p.n.a, x = n * double(logCos), power = phongPower(n, logCos);
-    if (power == 0) {
+// The seeded slot's one-vertex terms summed apart: per channel the sums of their constants k, of
+// k cos^n and of k cos^n log cos, which give the terms' values and derivatives at once (d/dkd_c
+// = sum k / pi, d/dks_c = the lobe's scale times sum k cos^n, d/dlog n = ks_c n (sum k cos^n /
+// 2 pi + scale sum k cos^n log cos)). Three sums a term instead of the Jets' twelve products
+// (`BM_ReplayJet*`); the same values as the term-by-term replay to rounding.
+struct SeededOneVertexSums {
+    Color3 constant = Color3::Zero(), power = Color3::Zero(), powerLogCos = Color3::Zero();
+
+    void add(double n, float logCos, const Color<float>& k) {
+        const double p = phongPower(n, logCos);
+        for (int c = 0; c < 3; ++c) constant[c] += double(k[c]);
+        if (p == 0) return;
+        const double pl = p * double(logCos);
         for (int c = 0; c < 3; ++c) {
-            sum[c].a += p.kd[c].a * kInvPi * double(constant[c]);
-            sum[c].v[0] += kInvPi * double(constant[c]);
+            power[c] += p * double(k[c]);
+            powerLogCos[c] += pl * double(k[c]);
         }
-        return;
     }
-    const double scale = (n + 2.0) * (0.5 * kInvPi), lobe = scale * power;
-    const double lobeLogN = scale * (power * x) + n * (0.5 * kInvPi) * power;
-    for (int c = 0; c < 3; ++c) {
-        const double k = double(constant[c]);
-        sum[c].a += (p.kd[c].a * kInvPi + p.ks[c].a * lobe) * k;
-        sum[c].v[0] += kInvPi * k;
-        sum[c].v[1] += lobe * k;
-        sum[c].v[2] += p.ks[c].a * lobeLogN * k;
+
+    // sum += the terms' f times k at the seeded Jets `p`.
+    void addTo(Color<PackedJet>& sum, const PhongParams<PackedJet>& p) const {
+        const double n = p.n.a, scale = (n + 2.0) * (0.5 * kInvPi);
+        for (int c = 0; c < 3; ++c) {
+            const double lobe = scale * power[c];
+            sum[c].a += p.kd[c].a * kInvPi * constant[c] + p.ks[c].a * lobe;
+            sum[c].v[0] += kInvPi * constant[c];
+            sum[c].v[1] += lobe;
+            sum[c].v[2] += p.ks[c].a * n * (0.5 * kInvPi * power[c] + scale * powerLogCos[c]);
+        }
     }
-}
+};
 
 // replayPixel with the Jets of packedParams at slot `seeded` and constants elsewhere.
 inline Color<PackedJet> replaySeededPixel(const PathSet& paths, std::size_t pixel,
                                           const PhongParams<PackedJet>* theta,
                                           std::uint32_t seeded) {
-    return replayTerms(
-        paths, pixel, theta,
-        [theta, seeded](Color<PackedJet>& sum, const PathVertex& v, const Color<float>& constant) {
-            if (v.slot == seeded)
-                addSeededOneVertexTerm(sum, theta[v.slot], v.logCos, constant);
-            else
-                addOneVertexTerm(sum, theta[v.slot], v.logCos, constant);
-        });
+    SeededOneVertexSums seededSums;
+    const double n = theta[seeded].n.a;
+    Color<PackedJet> sum =
+        replayTerms(paths, pixel, theta,
+                    [theta, seeded, n, &seededSums](Color<PackedJet>& sum, const PathVertex& v,
+                                                    const Color<float>& k) {
+                        if (v.slot == seeded)
+                            seededSums.add(n, v.logCos, k);
+                        else
+                            addOneVertexTerm(sum, theta[v.slot], v.logCos, k);
+                    });
+    seededSums.addTo(sum, theta[seeded]);
+    return sum;
 }
 
 // The pixel's prediction and its derivatives with respect to the natural coordinates (kd, ks,

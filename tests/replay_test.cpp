@@ -253,9 +253,10 @@ TEST(Replay, JetGradientsMatchCentralDifferences) {
     EXPECT_GT(checked, 200);
 }
 
-// The replays of one-vertex terms (addOneVertexTerm, and with one slot seeded the Jets written
-// out) give what every term through phongEvalLogCos gives (termBrdfs), values and derivatives, bit
-// for bit, lobes exactly 0 (n 1e6 off its peak, vertices behind it) included.
+// The replays of one-vertex terms (addOneVertexTerm) give what every term through phongEvalLogCos
+// gives (termBrdfs), values and derivatives, bit for bit, lobes exactly 0 (n 1e6 off its peak,
+// vertices behind it) included. The seeded replay sums the seeded slot's terms in another order
+// (SeededOneVertexSums): the same to rounding, a few ulps of the terms' magnitudes.
 template <typename T>
 Color<T> termByTerm(const PathSet& paths, int pixel, const PhongParams<T>* theta) {
     Color<T> sum;
@@ -267,9 +268,27 @@ Color<T> termByTerm(const PathSet& paths, int pixel, const PhongParams<T>* theta
     return sum;
 }
 
-TEST(Replay, OneVertexTermsAreTheBrdfsBitForBit) {
+// Per channel, the sum over the pixel's terms of |f k| in the value and each derivative: the scale
+// of their rounding.
+Color<PackedJet> termMagnitudes(const PathSet& paths, int pixel,
+                                const PhongParams<PackedJet>* theta) {
+    Color<PackedJet> sum;
+    for (int c = 0; c < 3; ++c) sum[c] = PackedJet(std::abs(double(paths.background[pixel][c])));
+    for (std::uint32_t t = paths.pixelStart[pixel]; t < paths.pixelStart[pixel + 1]; ++t) {
+        const Color<PackedJet> f = termBrdfs(paths, paths.terms[t], theta);
+        for (int c = 0; c < 3; ++c) {
+            const double k = std::abs(double(paths.terms[t].constant[c]));
+            sum[c].a += std::abs(f[c].a) * k;
+            sum[c].v += f[c].v.cwiseAbs() * k;
+        }
+    }
+    return sum;
+}
+
+TEST(Replay, OneVertexReplaysAreTheBrdfs) {
     const RandomPaths r(60, 5);
     std::vector<PhongMaterial> theta = twoMaterials();
+    int seededDiffer = 0;
     for (const double n : {30.0, 1e6}) {
         theta[0].n = n;
         for (int p = 0; p < r.paths.width; ++p) {
@@ -285,20 +304,28 @@ TEST(Replay, OneVertexTermsAreTheBrdfsBitForBit) {
                                       : constantParams<PackedJet>(theta[s]);
             }
             for (int p = 0; p < r.paths.width; ++p) {
-                const Color<PackedJet> reference = termByTerm(r.paths, p, jets.data());
-                for (const Color<PackedJet>& replayed :
-                     {replayPixel(r.paths, p, jets.data()),
-                      replaySeededPixel(r.paths, p, jets.data(), seeded)}) {
-                    for (int c = 0; c < 3; ++c) {
-                        EXPECT_EQ(replayed[c].a, reference[c].a) << "pixel " << p << " n " << n;
-                        for (int i = 0; i < 3; ++i)
-                            EXPECT_EQ(replayed[c].v[i], reference[c].v[i])
-                                << "pixel " << p << " n " << n << " derivative " << i;
+                const Color<PackedJet> reference = termByTerm(r.paths, p, jets.data()),
+                                       generic = replayPixel(r.paths, p, jets.data()),
+                                       seededJets =
+                                           replaySeededPixel(r.paths, p, jets.data(), seeded),
+                                       scale = termMagnitudes(r.paths, p, jets.data());
+                for (int c = 0; c < 3; ++c) {
+                    EXPECT_EQ(generic[c].a, reference[c].a) << "pixel " << p << " n " << n;
+                    EXPECT_NEAR(seededJets[c].a, reference[c].a, 1e-14 * scale[c].a)
+                        << "pixel " << p << " n " << n;
+                    seededDiffer += seededJets[c].a != reference[c].a;
+                    for (int i = 0; i < 3; ++i) {
+                        EXPECT_EQ(generic[c].v[i], reference[c].v[i])
+                            << "pixel " << p << " n " << n << " derivative " << i;
+                        EXPECT_NEAR(seededJets[c].v[i], reference[c].v[i], 1e-14 * scale[c].v[i])
+                            << "pixel " << p << " n " << n << " derivative " << i;
                     }
                 }
             }
         }
     }
+    // The tolerance is not idle: the orders differ.
+    EXPECT_GT(seededDiffer, 0);
 }
 
 // sum over pixels of |1.5 (I_p - observed)|^2 through LeastSquaresResidual: its residual and
@@ -499,24 +526,33 @@ TEST(MomentResidual, PassesGradientCheckerWithHeldDiffuse) {
     checkMomentGradients<kRgbBlock>(held);
 }
 
-// Dogleg tries the same trial point again after a rejected step while its region is larger than
-// the step: the blocks hand back the residuals they computed there instead of summing every pixel
-// again, the same numbers; a point with Jacobians, or a new point, is summed.
-TEST(TrialPointCache, ARepeatedTrialPointIsNotSummedAgain) {
+// Ceres evaluates an accepted trial point again with Jacobians, and dogleg tries the same trial
+// point again after a rejected step while its region is larger than the step: the blocks sum every
+// pixel once a point, Jacobians included, and hand back what they summed there, the same numbers;
+// a new point is summed.
+TEST(EvaluationCache, APointIsSummedOnce) {
     constexpr int P = kGreyBlock;
     int leastSquaresSums = 0, momentSums = 0;
+    bool summedWithoutJacobians = false;
     const auto sums = [&](const double* y, double& squares, Eigen::VectorXd* gradient,
                           Eigen::MatrixXd* gramian) {
         ++leastSquaresSums;
         squares = 1 + y[0] * y[0] + y[2] * y[2];
-        if (gradient == nullptr) return;
+        if (gradient == nullptr) {
+            summedWithoutJacobians = true;
+            return;
+        }
         *gradient = Eigen::Vector3d(2 * y[0], 0, 2 * y[2]);
         *gramian = 2 * Eigen::Matrix3d::Identity();
     };
     const auto moments = [&](const double* y, Eigen::VectorXd& g, Eigen::MatrixXd* dg) {
         ++momentSums;
         g = Eigen::Vector3d(y[0] - 0.5, y[1] - 0.1, y[2] - 3);
-        if (dg != nullptr) *dg = Eigen::Matrix3d::Identity();
+        if (dg == nullptr) {
+            summedWithoutJacobians = true;
+            return;
+        }
+        *dg = Eigen::Matrix3d::Identity();
     };
     const std::vector<HeldParams> held(1);
     const LeastSquaresResidual<P> leastSquares(sums, {0}, held, {0, 1, 2});
@@ -524,8 +560,10 @@ TEST(TrialPointCache, ARepeatedTrialPointIsNotSummedAgain) {
     const double a[P] = {0.6, 0.3, 2.0}, b[P] = {0.5, 0.2, 3.0};
     const double* at[1] = {a};
     const double* other[1] = {b};
-    double first[P + 1], again[P + 1], moved[P + 1], jacobian[(P + 1) * P];
+    double first[P + 1], again[P + 1], moved[P + 1];
+    double jacobian[(P + 1) * P], jacobianAgain[(P + 1) * P];
     double* jacobians[1] = {jacobian};
+    double* jacobiansAgain[1] = {jacobianAgain};
     for (const ceres::CostFunction* block : {static_cast<const ceres::CostFunction*>(&leastSquares),
                                              static_cast<const ceres::CostFunction*>(&moment)}) {
         const int* calls = block == &leastSquares ? &leastSquaresSums : &momentSums;
@@ -534,15 +572,22 @@ TEST(TrialPointCache, ARepeatedTrialPointIsNotSummedAgain) {
         ASSERT_TRUE(block->Evaluate(at, again, nullptr));
         EXPECT_EQ(*calls, 1);
         EXPECT_TRUE(std::equal(first, first + rows, again));
+        // The accepted point's Jacobians: from the same sums (least squares' residuals then
+        // hold the cost's part along the gradient in rows of their own).
+        ASSERT_TRUE(block->Evaluate(at, again, jacobians));
+        EXPECT_EQ(*calls, 1);
+        EXPECT_TRUE(block != &moment || std::equal(first, first + rows, again));
+        double withJacobians[P + 1];
+        std::copy(again, again + rows, withJacobians);
         ASSERT_TRUE(block->Evaluate(other, moved, nullptr));
         EXPECT_EQ(*calls, 2);
         EXPECT_FALSE(std::equal(first, first + rows, moved));
-        ASSERT_TRUE(block->Evaluate(at, again, nullptr));
+        ASSERT_TRUE(block->Evaluate(at, again, jacobiansAgain));
         EXPECT_EQ(*calls, 3);
-        EXPECT_TRUE(std::equal(first, first + rows, again));
-        ASSERT_TRUE(block->Evaluate(at, again, jacobians));
-        EXPECT_EQ(*calls, 4);
+        EXPECT_TRUE(std::equal(withJacobians, withJacobians + rows, again));
+        EXPECT_TRUE(std::equal(jacobian, jacobian + rows * P, jacobianAgain));
     }
+    EXPECT_FALSE(summedWithoutJacobians);
 }
 
 }  // namespace
