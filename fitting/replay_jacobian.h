@@ -49,7 +49,7 @@ PhongParams<T> constantParams(const PhongMaterial& m) {
 // The seeded slot's one-vertex terms summed apart: per channel the sums of their constants k, of
 // k cos^n and of k cos^n log cos, which give the terms' values and derivatives at once (d/dkd_c
 // = sum k / pi, d/dks_c = the lobe's scale times sum k cos^n, d/dlog n = ks_c n (sum k cos^n /
-// 2 pi + scale sum k cos^n log cos)). Three sums a term instead of the Jets' twelve products
+// 2 pi + scale sum k cos^n log cos)). Three sums a channel where the Jets took four products
 // (`BM_ReplayJet*`); the same values as the term-by-term replay to rounding.
 struct SeededOneVertexSums {
     Color3 constant = Color3::Zero(), power = Color3::Zero(), powerLogCos = Color3::Zero();
