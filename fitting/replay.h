@@ -43,7 +43,7 @@ void addOneVertexTerm(Color<T>& sum, const PhongParams<T>& p, float logCos,
 }
 
 // The pixel's background plus its terms, `addOneVertex(sum, vertex, constant)` adding those of
-// one vertex (replayPixel's addOneVertexTerm, or the fitter's seeded Jets) and termBrdfs the rest.
+// one vertex (replayPixel's addOneVertexTerm, or the fitter's seeded sums) and termBrdfs the rest.
 template <typename T, typename AddOneVertex>
 Color<T> replayTerms(const PathSet& paths, std::size_t pixel, const PhongParams<T>* theta,
                      AddOneVertex addOneVertex) {

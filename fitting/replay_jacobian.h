@@ -6,7 +6,8 @@
 // kd_c, ks_c and n only. Seeding kd_c in Jet component 0 and ks_c in component 1 for every channel,
 // and log n in component 2, gives in channel c of the result d/d(kd_c, ks_c, log n) with 3-wide
 // Jets instead of 7-wide ones (the replay is where the time goes). A pixel that touches k slots is
-// replayed once per slot with only that slot seeded.
+// replayed once per slot with only that slot seeded; the seeded slot's one-vertex terms (most of
+// them) are summed apart and their derivatives taken once a pixel (SeededOneVertexSums).
 #pragma once
 
 #include <ceres/jet.h>
