@@ -12,6 +12,7 @@
 #include "atomic_file.h"
 #include "bench_fit_report.h"
 #include "bench_fit_row.h"
+#include "color_json.h"
 #include "error.h"
 #include "interrupt.h"
 #include "json_files.h"
@@ -139,10 +140,9 @@ FitRow fitSample(const DatasetSample& s, int spp, const BenchFitOptions& o, cons
 
 // The options that decide the results (not the threads, the output or the shard), exactly.
 json settingsJson(const BenchFitOptions& o) {
-    const auto colour = [](const Color3& c) { return json::array({c[0], c[1], c[2]}); };
     return {{"spp_per_round", o.sppPerRound},
-            {"start_kd", colour(o.startKd)},
-            {"start_ks", colour(o.startKs)},
+            {"start_kd", colorJson(o.startKd)},
+            {"start_ks", colorJson(o.startKs)},
             {"start_n", o.startN},
             {"start_n_factor", o.startNFactor},
             {"kd_ks_tolerance", o.kdKsTolerance},

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "color_json.h"
 #include "error.h"
 #include "image.h"
 #include "interrupt.h"
@@ -87,8 +88,6 @@ void prepareOutput(const fs::path& dir, const json& record) {
     if (existing != record) writeJsonAtomically(recordPath, record);  // from an older phongfit
 }
 
-json toJson(const Color3& c) { return json::array({c[0], c[1], c[2]}); }
-
 // Renders one sample into dir/<name>; false (and no truth.json) if the render was interrupted.
 bool makeSample(const SynthConfig& config, const SampleSpec& s, const fs::path& dir, int threads) {
     const GroupConfig& g = config.groups[s.group];
@@ -128,8 +127,8 @@ bool makeSample(const SynthConfig& config, const SampleSpec& s, const fs::path& 
         {"scene", "scene.xml"},
         {"image", "image.exr"},
         {"material", g.material},
-        {"kd", toJson(truth.kd)},
-        {"ks", toJson(truth.ks)},
+        {"kd", colorJson(truth.kd)},
+        {"ks", colorJson(truth.ks)},
         {"n", truth.n},
         // Drawn grey, or a grid material grey in kd and ks: the fit ties the channels.
         {"grey", g.grid ? truth.kd.maxCoeff() == truth.kd.minCoeff() &&

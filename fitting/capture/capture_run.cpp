@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
+#include "color_json.h"
 #include "comparison_image.h"
 #include "error.h"
 #include "fit_report.h"
@@ -48,8 +49,6 @@ std::pair<std::vector<int>, std::vector<int>> selectLights(const CaptureFitInput
     }
     return {lights, holdout};
 }
-
-nlohmann::json rgb(const Color3& c) { return nlohmann::json::array({c[0], c[1], c[2]}); }
 
 nlohmann::json errorJson(const PredictionError& phong, const PredictionError& lambertian) {
     return {{"pairs", phong.pairs},
@@ -211,7 +210,8 @@ void writeUniformFit(const CaptureRun& run, const CaptureFitInputs& inputs, cons
     nlohmann::json report = toJson(fit.phong, {"capture"});
     describeCapture(run, inputs, fit.model, report);
     report["model"] = modelJson("uniform", {"diffuse", "specular"}, {"diffuse"}, inputs, loss);
-    report["start"] = {{"kd", rgb(fit.start.kd)}, {"ks", rgb(fit.start.ks)}, {"n", fit.start.n}};
+    report["start"] = {
+        {"kd", colorJson(fit.start.kd)}, {"ks", colorJson(fit.start.ks)}, {"n", fit.start.n}};
     report["energy_bound_reached"] = fit.energyBoundReached;
     report["units"] =
         fit.scale == 1
@@ -281,8 +281,8 @@ void writeAlbedoMapFit(const CaptureRun& run, const CaptureFitInputs& inputs, co
         report["lobes"].push_back(
             {{"material", i + 1},
              {"pixels", lobe.pixels},
-             {"ks", rgb(lobe.ks)},
-             {"ks_std", rgb(lobe.ksStd)},
+             {"ks", colorJson(lobe.ks)},
+             {"ks_std", colorJson(lobe.ksStd)},
              {"n", lobe.n},
              {"n_std", std::isfinite(lobe.nStd) ? nlohmann::json(lobe.nStd) : nlohmann::json()},
              {"unconstrained", lobe.unconstrained},

@@ -6,13 +6,12 @@
 #include <fstream>
 
 #include "atomic_file.h"
+#include "color_json.h"
 #include "error.h"
 #include "memory_plan.h"
 
 namespace phongfit {
 namespace {
-
-nlohmann::json rgb(const Color3& c) { return nlohmann::json::array({c[0], c[1], c[2]}); }
 
 nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
                              const std::vector<std::string>& ids) {
@@ -22,17 +21,18 @@ nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
     nlohmann::json out = nlohmann::json::object();
     for (std::size_t s = 0; s < materials.size(); ++s) {
         const MaterialFit& m = materials[s];
-        out[ids[s]] = {
-            {"kd", rgb(m.kd)},
-            {"ks", rgb(m.ks)},
-            {"n", m.n},
-            {"kd_std", rgb(m.kdStd)},
-            {"ks_std", rgb(m.ksStd)},
-            {"n_std", m.nStd},
-            {"log_n_std", m.logNStd},
-            {"image_noise_std",
-             {{"kd", rgb(m.kdImageStd)}, {"ks", rgb(m.ksImageStd)}, {"n", m.n * m.logNImageStd}}},
-            {"unconstrained", m.unconstrained}};
+        out[ids[s]] = {{"kd", colorJson(m.kd)},
+                       {"ks", colorJson(m.ks)},
+                       {"n", m.n},
+                       {"kd_std", colorJson(m.kdStd)},
+                       {"ks_std", colorJson(m.ksStd)},
+                       {"n_std", m.nStd},
+                       {"log_n_std", m.logNStd},
+                       {"image_noise_std",
+                        {{"kd", colorJson(m.kdImageStd)},
+                         {"ks", colorJson(m.ksImageStd)},
+                         {"n", m.n * m.logNImageStd}}},
+                       {"unconstrained", m.unconstrained}};
     }
     return out;
 }
