@@ -13,7 +13,9 @@
 
 namespace phongfit {
 
-namespace {
+// In a named namespace: pathImportance's closures (external linkage) hold these, and in a unity
+// build (scripts/build.sh) gcc warns of a closure that holds an anonymous namespace's type.
+namespace importance_detail {
 
 // Floats, 8 bytes: one per pixel of a view while the fitter's paths are held.
 struct PixelSpread {
@@ -50,7 +52,7 @@ PixelSpread spread(const PathSet& a, const PathSet& b, std::uint32_t pixel,
     return s;
 }
 
-}  // namespace
+}  // namespace importance_detail
 
 template <int P>
 std::vector<std::vector<float>> pathImportance(const std::vector<Observation>& observations,
@@ -59,6 +61,7 @@ std::vector<std::vector<float>> pathImportance(const std::vector<Observation>& o
                                                const std::vector<double>& natural,
                                                const std::vector<double>& naturalStd, int threads) {
     using L = BlockLayout<P>;
+    using importance_detail::PixelSpread;
     const std::uint32_t slots = std::uint32_t(first.at(0).slots);
     std::vector<std::uint32_t> allSlots(slots);
     std::iota(allSlots.begin(), allSlots.end(), 0u);
@@ -83,7 +86,8 @@ std::vector<std::vector<float>> pathImportance(const std::vector<Observation>& o
                     const std::uint32_t p = std::uint32_t(y) * std::uint32_t(width) + x;
                     if (!o.valid.empty() && !o.valid[p]) continue;
                     PixelSpread& s = spreads[p];
-                    s = spread<P>(first[v], second[v], p, allSlots, natural, weights, theta);
+                    s = importance_detail::spread<P>(first[v], second[v], p, allSlots, natural,
+                                                     weights, theta);
                     if (!o.weight.empty())
                         s.sensitivity = float(s.sensitivity * std::abs(double(o.weight[p])));
                 }

@@ -21,7 +21,7 @@ targets=("$@")
 flags="-O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer-no-link,address,undefined"
 flags+=" -fno-sanitize-recover=all"
 CXX=clang++ cmake -S "$root" -B "$build" -G "Unix Makefiles" -DCMAKE_BUILD_TYPE=Fuzz \
-  -DPHONGFIT_FUZZ=ON -DCMAKE_CXX_FLAGS="$flags" \
+  -DPHONGFIT_FUZZ=ON -DCMAKE_UNITY_BUILD=ON -DCMAKE_CXX_FLAGS="$flags" \
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
 make -C "$build" -j "$jobs" --no-print-directory "${targets[@]/%/_fuzz}"
 
