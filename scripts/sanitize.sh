@@ -2,11 +2,12 @@
 # The test suite (but for the tests left out below) under AddressSanitizer +
 # UndefinedBehaviorSanitizer, in build-asan/ (or $PHONGFIT_ASAN_DIR). Fails on any test failure
 # and on any sanitizer report, including reports from phongfit subprocesses whose tests only
-# expected a failure: every report goes to a log file that must stay empty. -O2 (session 56: the
-# 25 slowest sanitized tests 582 s against 726 at -O1, the build no longer) and unity batches (as
-# scripts/build.sh) keep it affordable on 2 cores; extra arguments go to ctest. Built with clang, as the fuzzers are: it
-# compiles the sanitized Eigen and Ceres templates in 60% of gcc's time (fitter_test.cpp: 55 s
-# against 91, side by side), and a second compiler sees what the plain (gcc) build does not.
+# expected a failure: every report goes to a log file that must stay empty. -O2 (session 56: 25
+# of the slowest sanitized tests in 582 s against 726 at -O1, the build no slower) and unity
+# batches (as scripts/build.sh) keep it affordable on 2 cores; extra arguments go to ctest. Built
+# with clang, as the fuzzers are: it compiles the sanitized Eigen and Ceres templates in 60% of
+# gcc's time (fitter_test.cpp: 55 s against 91, side by side), and a second compiler sees what the
+# plain (gcc) build does not.
 #
 # Left out, to keep CI under its 45 minutes (each takes 1-4 min under ASan; all run in the plain
 # suite of scripts/test.sh):
