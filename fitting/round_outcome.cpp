@@ -25,12 +25,11 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
         fit.kdStd[c] = stdNatural[L::diffuse(L::group(c))];
         fit.ksStd[c] = stdNatural[L::specular(L::group(c))];
     }
-    // A held n is reported, and the next round records, exactly as it started (exp(log n) need
-    // not round-trip); one held with ks, where no pixel sees the lobe (holding.cpp), where it is.
-    const bool lobeUnseen =
-        std::any_of(held.ks.begin(), held.ks.begin() + L::kGroups, [](bool h) { return h; });
+    // An n held at its start is reported, and the next round records, exactly as it started
+    // (exp(log n) need not round-trip); one held where it is (holding.cpp: a lobe no pixel sees,
+    // or one broader than the start) is reported there, where kd and ks were fitted with it.
     const PhongMaterial& start = params.start(m);
-    if (held.n && (!lobeUnseen || y[L::kLogN] == naturalFromPhong<P>(start)[L::kLogN]))
+    if (held.n && y[L::kLogN] == naturalFromPhong<P>(start)[L::kLogN])
         fit.n = std::clamp(start.n, kMinExponent, kMaxExponent);
     fit.logNStd = stdNatural[L::kLogN];
     fit.nStd = fit.n * fit.logNStd;

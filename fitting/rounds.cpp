@@ -51,11 +51,22 @@ std::size_t tracedPaths(const std::vector<PathSet>& sets) {
     return paths;
 }
 
-// The estimate `out` ends at; the exposure stays `before`'s where it is not fitted.
-Estimate estimateOf(const RoundOutcome& out, const Estimate& before, bool fitExposure) {
+// The estimate `out` ends at; the exposure stays `before`'s where it is not fitted. An n held
+// for want of a lobe (not with its ks: a lobe no pixel sees stays where it is) goes back to its
+// `start`, where the next round records and is judged from: one held broader, where kd and ks were
+// fitted (and reported), would leave a second diffuse term for the next round to fit.
+Estimate estimateOf(const RoundOutcome& out, const Estimate& before, bool fitExposure,
+                    const std::vector<PhongMaterial>& start) {
     Estimate e = before;
-    for (std::size_t s = 0; s < e.materials.size(); ++s)
-        e.materials[s] = out.materials[s].material();
+    for (std::size_t s = 0; s < e.materials.size(); ++s) {
+        const MaterialFit& fit = out.materials[s];
+        e.materials[s] = fit.material();
+        const bool lobeHeld =
+            std::any_of(fit.unconstrained.begin(), fit.unconstrained.end(),
+                        [](const std::string& name) { return name.starts_with("ks"); });
+        if (fit.isUnconstrained("n") && !lobeHeld)
+            e.materials[s].n = std::clamp(start[s].n, kMinExponent, kMaxExponent);
+    }
     if (fitExposure) e.exposure = out.exposure.value;
     return e;
 }
@@ -344,7 +355,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // noise, the image's being common to both (docs/design/fitter.md, "At equal paths").
         else if (!probed && recordFactor <= previousRound.pathFactor)
             addPathNoise(noise, previousRound.pathNoise);
-        const Estimate solved = estimateOf(out, theta, options.fitExposure);
+        const Estimate solved = estimateOf(out, theta, options.fitExposure, start);
         // Exact sets (the same list as both recordings) give the same problem every round: the
         // solver's own convergence is the answer.
         const auto before = params.naturalBlocks(recorded), after = params.naturalBlocks(solved);
@@ -411,7 +422,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         r.timeSeconds = secondsSince(roundBegin);
         result.rounds.push_back(r);
         if (options.onRound) options.onRound(r);
-        theta = estimateOf(out, theta, options.fitExposure);
+        theta = estimateOf(out, theta, options.fitExposure, start);
         result.converged = settled;
         result.materials = out.materials;
         if (options.fitExposure) result.exposure = out.exposure;

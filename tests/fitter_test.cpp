@@ -619,7 +619,8 @@ TEST(Fitter, WithoutSpecularTheExponentIsUnconstrainedAndHeld) {
         expectFinite(r);
         const MaterialFit& m = r.materials[0];
         EXPECT_EQ(m.unconstrained, std::vector<std::string>{"n"}) << "sigma " << sigma;
-        EXPECT_EQ(m.n, 50.0);
+        // Held at its start, or where it went if that is broader (holding.h), and reported there.
+        EXPECT_LE(m.n, 50.0);
         EXPECT_EQ(m.nStd, 0.0);
         for (int c = 0; c < 3; ++c) {
             if (sigma == 0) {
@@ -1117,6 +1118,46 @@ MoveInStandardErrors moveInStandardErrors(const MaterialFit& before, const Mater
     return most;
 }
 
+// A lobeless material's n, held for want of a lobe (here in round 1 at its start, in round 2
+// where it went broader: holding.h), is reported where it was held, with the kd and ks fitted
+// there; the next round records and starts at the start's n. Recorded where it was held, the next
+// rounds fit a second diffuse term (on the recovery matrix 10 lobeless cells fewer converged, one
+// took 12.6 s for 1.1, one ended ks 0.0056 for 0).
+TEST(Fitter, AnExponentHeldBroaderIsReportedThereAndRecordedAtTheStart) {
+    const SphereScene scene = threeLights();
+    const PhongMaterial truth = material(Color3(0.6, 0.5, 0.4), Color3::Zero(), 10);
+    const PhongMaterial start = material(Color3::Constant(0.2), Color3::Constant(0.3), 50);
+    const Observation obs = observe(makePaths(scene), {truth});
+    const PathRecorder noisy = noisyRecorder(scene, 7, 0.05);
+    std::vector<double> recordedAt;  // n of each recording, in order
+    const PathRecorder record = [&](int view, const std::vector<PhongMaterial>& theta,
+                                    int recording, const std::vector<float>& importance,
+                                    double pathFactor) {
+        recordedAt.push_back(theta[0].n);
+        return noisy(view, theta, recording, importance, pathFactor);
+    };
+    FitOptions options;
+    options.maxRounds = 4;
+    options.stdTolerance = 0;  // no round settles: every round is followed by another
+    options.recordingFollowsEstimate = false;  // nor probed
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    expectFinite(r);
+    ASSERT_EQ(r.rounds.size(), 4u);
+    ASSERT_EQ(recordedAt.size() % r.rounds.size(), 0u);
+    const std::size_t perRound = recordedAt.size() / r.rounds.size();
+    int heldBroader = 0;
+    for (std::size_t k = 0; k + 1 < r.rounds.size(); ++k) {
+        const MaterialFit& m = r.rounds[k].materials[0];
+        const bool held = m.isUnconstrained("n");
+        if (held && m.n < start.n) ++heldBroader;
+        for (std::size_t i = 0; i < perRound; ++i)
+            EXPECT_EQ(recordedAt[(k + 1) * perRound + i], held ? start.n : m.n) << "round " << k;
+    }
+    EXPECT_GE(heldBroader, 1) << "no round held n broader than its start: the case is not tried";
+    EXPECT_TRUE(r.materials[0].isUnconstrained("n"));
+    for (int c = 0; c < 3; ++c) EXPECT_LT(r.materials[0].ks[c], 1e-3) << c;
+}
+
 // Paths that grow average their noise down. A round recorded at a settled round's estimate with
 // more paths moves from it by both rounds' path noise, the larger part the settled round's; by its
 // own standard errors alone the move would not have settled and the paths would have grown again.
@@ -1500,7 +1541,9 @@ TEST(Fitter, LobeConfirmationLeavesALobeTheImagesShow) {
 // Lobe confirmation holding n: kd's and ks's standard errors with n held are as if n were known.
 // A weak broad lobe (ks 0.05, n 3, noisy recordings), held where it is, reports them at least as
 // they were with n free, which cover the truth (held as known, kd's did not: 3.1 standard errors
-// off in green).
+// off in green). n is reported where it was held, with the kd and ks fitted there: reported at its
+// start instead (300), a Cornell box's n of 1, resolved to 10% in the rounds before, came out
+// "100, unconstrained" beside the kd and ks of n 0.96.
 TEST(Fitter, HeldExponentLeavesKdAndKsAsUncertainAsWithNFree) {
     const PathSet exact = makePaths(threeLights());
     const std::vector<PathSet> a{noisy(exact, 1, 2)}, b{noisy(exact, 2, 2)};
@@ -1516,6 +1559,8 @@ TEST(Fitter, HeldExponentLeavesKdAndKsAsUncertainAsWithNFree) {
     ASSERT_TRUE(solver.confirmLobes(out, &floor));
     const MaterialFit& m = out.materials[0];
     EXPECT_TRUE(m.isUnconstrained("n"));
+    EXPECT_LT(free.n, 300);
+    EXPECT_DOUBLE_EQ(m.n, free.n);
     for (int c = 0; c < 3; ++c) {
         EXPECT_GE(m.kdStd[c], free.kdStd[c]) << c;
         EXPECT_GE(m.ksStd[c], free.ksStd[c]) << c;
