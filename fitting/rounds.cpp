@@ -208,11 +208,12 @@ bool climbing(const std::vector<FitRound>& rounds) {
 // `result` holds the round's estimate `out`, which stopped moving. Its stop reason and whether it
 // is converged: resolved and as precise as FitOptions::precision asks (if `planned`: the sets are
 // recorded, so more paths can be asked for) or at the image's noise floor; a converged lobe is
-// then probed (if `probes`) in a next round, which the last round does not have.
+// then probed (if `probes`) in a next round, which the last round does not have, from `at`
+// (where the next round would record).
 template <int P>
 Settled settle(FitResult& result, const RoundOutcome& out, const ParameterState<P>& params,
                const FitOptions& options, double recordFactor, bool planned, bool probes,
-               bool lastRound) {
+               bool lastRound, const std::vector<PhongMaterial>& at) {
     // Stopped moving, but not at a solution the recordings resolve: say so.
     const bool resolved = allResolved(out.materials);
     planned = planned && options.precision > 0;
@@ -232,7 +233,7 @@ Settled settle(FitResult& result, const RoundOutcome& out, const ParameterState<
                         : !planned ? "converged"
                         : plan.met ? "precision"
                                    : "noise floor";
-    if (probes && resolved) next.sharper = sharperProbe(out.materials);
+    if (probes && resolved) next.sharper = sharperProbe(out.materials, at);
     if (!next.sharper.empty() && lastRound) {
         // No round left to probe. A probe round in the history did not come back (one that did
         // ends the fit): then only a probe that does ends it converged. Nor does a lobe that is
@@ -471,7 +472,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
             const Settled next = settle<P>(result, out, params, options, pooledFactor, !exact,
                                            rerecords && options.recordingFollowsEstimate && !exact,
-                                           round + 1 == maxRounds);
+                                           round + 1 == maxRounds, theta.materials);
             if (next.stop) break;
             sharper = next.sharper;
             if (sharper.empty() && round + 1 < maxRounds) {
@@ -483,7 +484,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 if (mostPathGain(importance, firstPaths, recordFactor) < kLeastPathGain) {
                     result.stopReason = "path cap";
                     if (rerecords && options.recordingFollowsEstimate && allResolved(out.materials))
-                        sharper = sharperProbe(out.materials);
+                        sharper = sharperProbe(out.materials, theta.materials);
                     if (sharper.empty()) break;
                     importanceTaken = false;
                 }

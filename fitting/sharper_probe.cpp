@@ -28,18 +28,16 @@ bool tellsApart(const MaterialFit& c, const MaterialFit& p) {
 
 }  // namespace
 
-std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials) {
-    std::vector<PhongMaterial> out;
+std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials,
+                                        std::vector<PhongMaterial> at) {
     bool any = false;
-    for (const MaterialFit& m : materials) {
-        PhongMaterial p = m.material();
-        if (probed(m)) {
-            p.n = m.n * probeFactor(m);
-            any = true;
-        }
-        out.push_back(p);
+    for (std::size_t s = 0; s < materials.size(); ++s) {
+        const MaterialFit& m = materials[s];
+        if (!probed(m)) continue;
+        at[s].n = m.n * probeFactor(m);
+        any = true;
     }
-    return any ? out : std::vector<PhongMaterial>{};
+    return any ? at : std::vector<PhongMaterial>{};
 }
 
 bool probeReturned(const std::vector<MaterialFit>& converged,

@@ -21,9 +21,11 @@ inline constexpr double kProbeFactor = 4;
 // where n goes, not for the converged round's precision.
 inline constexpr double kProbePaths = 0.5;
 
-// `materials` with each confirmed lobe's n (free, not listed unconstrained, below kMaxExponent /
-// kProbeFactor) raised to the probe's; empty when no lobe is to be probed.
-std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials);
+// `at` (where the next round would record: the materials' estimates, a held n as estimateOf
+// sends it) with each confirmed lobe's n in `materials` (free, not listed unconstrained, below
+// kMaxExponent / kProbeFactor) raised to the probe's; empty when no lobe is to be probed.
+std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials,
+                                        std::vector<PhongMaterial> at);
 
 // Whether each probed lobe came back: the probe round tells the converged n from its own start
 // (3 standard errors of log n short of the way between them, and below n) and put its n nearer the

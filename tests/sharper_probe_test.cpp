@@ -20,13 +20,18 @@ MaterialFit lobe(double n, double nStd) {
 }
 
 // A precise lobe is probed kProbeFactor sharper; an imprecise one by exp(3 standard errors of log
-// n); kd and ks stay. A held n, or one within kProbeFactor of kMaxExponent, is not probed; with
-// nothing to probe the list is empty.
+// n); kd and ks stay. A held n, or one within kProbeFactor of kMaxExponent, is not probed: it is
+// recorded where the next round would record it (a held n reported where it went broader, 30,
+// at its start, 300); with nothing to probe the list is empty.
 TEST(SharperProbe, RaisesEachFreeLobeBeyondItsStandardErrors) {
-    MaterialFit held = lobe(300, 0);
+    MaterialFit held = lobe(30, 0);
     held.unconstrained = {"n"};
-    const std::vector<PhongMaterial> p =
-        sharperProbe({lobe(1000, 10), lobe(1000, 600), held, lobe(kMaxExponent / 2, 10)});
+    const std::vector<MaterialFit> fits{lobe(1000, 10), lobe(1000, 600), held,
+                                        lobe(kMaxExponent / 2, 10)};
+    std::vector<PhongMaterial> at;
+    for (const MaterialFit& m : fits) at.push_back(m.material());
+    at[2].n = 300;
+    const std::vector<PhongMaterial> p = sharperProbe(fits, at);
     ASSERT_EQ(p.size(), 4u);
     EXPECT_DOUBLE_EQ(p[0].n, 1000 * kProbeFactor);
     EXPECT_DOUBLE_EQ(p[1].n, 1000 * std::exp(3 * 0.6));
@@ -34,7 +39,7 @@ TEST(SharperProbe, RaisesEachFreeLobeBeyondItsStandardErrors) {
     EXPECT_EQ(p[3].n, kMaxExponent / 2);
     EXPECT_TRUE((p[1].kd == lobe(1000, 600).kd).all());
     EXPECT_TRUE((p[1].ks == lobe(1000, 600).ks).all());
-    EXPECT_TRUE(sharperProbe({held, lobe(kMaxExponent / 2, 10)}).empty());
+    EXPECT_TRUE(sharperProbe({held, fits[3]}, {at[2], at[3]}).empty());
 }
 
 // Converged at n 1000 +- 10, probed at 4000: nearer 1000 than 4000 (in log n) is back, nearer
