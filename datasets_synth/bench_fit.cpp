@@ -156,13 +156,10 @@ json settingsJson(const BenchFitOptions& o) {
             {"fail_threshold", o.failThreshold}};
 }
 
-void applySettings(const json& s, BenchFitOptions& o) {
-    const auto colour = [](const json& c) {
-        return Color3(c.at(0).get<double>(), c.at(1).get<double>(), c.at(2).get<double>());
-    };
+void applySettings(const json& s, const std::string& file, BenchFitOptions& o) {
     o.sppPerRound = s.at("spp_per_round").get<std::vector<int>>();
-    o.startKd = colour(s.at("start_kd"));
-    o.startKs = colour(s.at("start_ks"));
+    o.startKd = colorFromJson(s.at("start_kd"), file, "settings.start_kd");
+    o.startKs = colorFromJson(s.at("start_ks"), file, "settings.start_ks");
     o.startN = s.at("start_n").get<double>();
     o.startNFactor = s.at("start_n_factor").get<double>();
     o.kdKsTolerance = s.at("kd_ks_tolerance").get<double>();
@@ -315,7 +312,7 @@ void mergeBenchFit(const std::string& directory, int threads) {
     const json record = readJsonFile(recordPath);
     BenchFitOptions o;
     try {
-        applySettings(record.at("settings"), o);
+        applySettings(record.at("settings"), recordPath.string(), o);
         o.dataset = record.at("dataset").get<std::string>();
     } catch (const json::exception& e) {
         throw Error(fmt::format("{}: damaged: {}", recordPath.string(), e.what()));

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "color_json.h"
 #include "error.h"
 #include "json_files.h"
 
@@ -13,13 +14,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-
-Color3 color(const json& j, const fs::path& file, const char* key) {
-    if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() ||
-        !j[2].is_number())
-        throw Error(fmt::format("{}: '{}' = {}: expected [r, g, b]", file.string(), key, j.dump()));
-    return Color3(j[0].get<double>(), j[1].get<double>(), j[2].get<double>());
-}
 
 }  // namespace
 
@@ -43,8 +37,8 @@ std::vector<DatasetSample> readDataset(const std::string& dir) {
             s.scenePath = (sampleDir / t.at("scene").get<std::string>()).string();
             s.imagePath = (sampleDir / t.at("image").get<std::string>()).string();
             s.material = t.at("material").get<std::string>();
-            s.truth.kd = color(t.at("kd"), file, "kd");
-            s.truth.ks = color(t.at("ks"), file, "ks");
+            s.truth.kd = colorFromJson(t.at("kd"), file.string(), "kd");
+            s.truth.ks = colorFromJson(t.at("ks"), file.string(), "ks");
             s.truth.n = t.at("n").get<double>();
             s.grey = t.at("grey").get<bool>();
             validatePhong(s.truth, file.string());

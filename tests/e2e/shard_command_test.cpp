@@ -4,9 +4,11 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
 
@@ -241,6 +243,18 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
     const auto wrong = run({"bench", "fit", "--merge", sharded.string(), "--rounds", "2"});
     EXPECT_NE(wrong.exitCode, 0);
     EXPECT_TRUE(contains(wrong.err, "--merge DIR takes no --rounds")) << wrong.err;
+
+    // A damaged record of the run's settings is refused on one line naming the file and value.
+    const fs::path record = sharded / "bench_run.json";
+    nlohmann::json broken = nlohmann::json::parse(std::ifstream(record));
+    broken["settings"]["start_kd"] = "grey";
+    std::ofstream(record) << broken.dump();
+    const auto damaged = run({"bench", "fit", "--merge", sharded.string()});
+    EXPECT_NE(damaged.exitCode, 0);
+    EXPECT_TRUE(contains(damaged.err,
+                         record.string() + ": 'settings.start_kd' = \"grey\": expected [r, g, b]"))
+        << damaged.err;
+    EXPECT_EQ(std::count(damaged.err.begin(), damaged.err.end(), '\n'), 1) << damaged.err;
 }
 
 TEST(SlurmCommand, DryRunPrintsTheArrayScript) {
