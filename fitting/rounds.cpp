@@ -370,19 +370,22 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             nearPool = poolable<P>(*pool, own) &&
                        withinTolerance<P>(before, after, poolingNoise<P>(*pool, own), options);
         }
-        const bool settled = withinTolerance<P>(before, after, noise, options) ||
-                             (exact && out.solverConverged) ||
-                             (!probed && settledAgain<P>(before, after, noise, previousRound, out,
-                                                         params, options, recordFactor)) ||
-                             nearPool;
-        // A round that did not settle by more than the precision target tolerates.
-        const bool movedPast =
-            options.precision > 0 && movedPastTarget<P>(params, before, after, options.precision);
         // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
         // (judged before lobe confirmation, which the probe's jump would put in the scatter) from
         // a solve not cut short.
         const bool probeBack = probed && !solveOptions.stopRequested() &&
                                probeReturned(probed->materials, out.materials);
+        // A probe that did not come back settles nothing: the rounds go on from its estimate
+        // (sharper_probe.h), its own move from the sharper lobe it was recorded at aside.
+        const bool settled =
+            (!probed || probeBack) &&
+            (withinTolerance<P>(before, after, noise, options) || (exact && out.solverConverged) ||
+             (!probed && settledAgain<P>(before, after, noise, previousRound, out, params, options,
+                                         recordFactor)) ||
+             nearPool);
+        // A round that did not settle by more than the precision target tolerates.
+        const bool movedPast =
+            options.precision > 0 && movedPastTarget<P>(params, before, after, options.precision);
         // A probe that did not come back, with no round after it, leaves the converged estimate
         // standing, unvouched.
         const bool probeLeft =
@@ -503,11 +506,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     joinable ? recordFactor * growth : std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
             }
-        } else if (round >= 2 && !exact && movedPast) {
+        } else if (!r.probe && round >= 2 && !exact && movedPast) {
             // Not settled, by more than the precision target allows, once the estimate has
-            // travelled from the start (rounds 0 and 1, as for the rounds' scatter): recordings
-            // this sparse may keep it jumping between states they cannot tell apart
-            // (docs/design/fitter.md, "Rounds that do not settle").
+            // travelled from the start (rounds 0 and 1, as for the rounds' scatter); not a probe's
+            // move from the sharper lobe it was sent to: recordings this sparse may keep it
+            // jumping between states they cannot tell apart (docs/design/fitter.md, "Rounds that
+            // do not settle").
             pathFactor *= unsettledGrowth(result, options, pathFactor, growth);
             growth = pathFactor / recordFactor;
         }

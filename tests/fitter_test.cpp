@@ -1158,6 +1158,43 @@ TEST(Fitter, AnExponentHeldBroaderIsReportedThereAndRecordedAtTheStart) {
     for (int c = 0; c < 3; ++c) EXPECT_LT(r.materials[0].ks[c], 1e-3) << c;
 }
 
+// Recordings that resolve n only within a factor 3 of the n they are recorded at, as the Cornell
+// box's under a 40-degree light (docs/design/fitter.md, "A broad stride"): further away, the
+// paths' constants carry noise of relative standard deviation `far`, within it `near`; both
+// shrink as the paths grow.
+PathRecorder nearSightedRecorder(const SphereScene& scene, unsigned seed, double near, double far) {
+    return [scene, seed, near, far](int, const std::vector<PhongMaterial>& theta, int recording,
+                                    const std::vector<float>&, double pathFactor) {
+        PathSet ps = makePaths(scene);
+        const bool sees = std::abs(std::log(theta[0].n / kTruth.n)) < std::log(3.0);
+        addRecordingNoise(ps, seed * 100 + unsigned(recording),
+                          (sees ? near : far) / std::sqrt(pathFactor));
+        return ps;
+    };
+}
+
+// A probe recorded where the recordings see little, at half the paths, did not come back: its n
+// 300 for 60, its lobe then held by confirmation (ks 0.14 +- 0.095). Its move from the sharper
+// lobe it was recorded at was within its noise, and the fit used to stop there, "converged", with
+// n held at 300 and ks 0.14 for 0.3, where the rounds before had n 60.3 +- 0.6. The rounds now go
+// on from the probe's estimate and come back to n 60.
+TEST(Fitter, AProbeThatDidNotComeBackSettlesNothing) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    const FitResult r =
+        fitMaterials({obs}, nearSightedRecorder(scene, 1, 0.05, 1.0),
+                     {material(Color3::Constant(0.3), Color3::Constant(0.3), 6000)}, FitOptions());
+    expectFinite(r);
+    std::size_t probe = 0;
+    while (probe < r.rounds.size() && !r.rounds[probe].probe) ++probe;
+    ASSERT_LT(probe, r.rounds.size()) << "no probe: the case is not tried";
+    EXPECT_GT(r.rounds[probe].materials[0].n, 3 * kTruth.n);  // it did not come back
+    EXPECT_GT(r.rounds.size(), probe + 1) << "the fit stopped at the probe";
+    EXPECT_FALSE(r.materials[0].isUnconstrained("n"));
+    EXPECT_NEAR(r.materials[0].n, kTruth.n, 3 * r.materials[0].nStd);
+    EXPECT_NEAR(r.materials[0].ks[0], kTruth.ks[0], 3 * r.materials[0].ksStd[0]);
+}
+
 // Paths that grow average their noise down. A round recorded at a settled round's estimate with
 // more paths moves from it by both rounds' path noise, the larger part the settled round's; by its
 // own standard errors alone the move would not have settled and the paths would have grown again.
