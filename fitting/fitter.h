@@ -105,6 +105,8 @@ struct FitRound {
     // Recorded at a sharper lobe than the converged estimate before it (sharper_probe.h); if its
     // lobes came back, the result is that estimate's.
     bool probe = false;
+    // Recorded at a broad stride from the round before's recording (broad_stride.h).
+    bool broadStride = false;
     // The rounds, this one the last, whose estimates the estimate after it pools
     // (pooled_rounds.h): 1 where it is this round's own.
     int pooledRounds = 1;

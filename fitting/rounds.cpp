@@ -10,6 +10,7 @@
 #include <thread>
 #include <utility>
 
+#include "broad_stride.h"
 #include "convergence.h"
 #include "error.h"
 #include "fit_input.h"
@@ -291,6 +292,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         std::vector<MaterialFit> converged, probe;
     };
     std::optional<Unreturned> unreturned;
+    // A broad stride is taken once a fit: after it, the rounds near the truth are left to the
+    // paths (a second stride at 2 paths a pixel left 0128 out of its tolerance when the rounds ran
+    // out). `atStride`: the next round records at it.
+    bool strided = false, atStride = false;
     bool vouched = false;          // the fit ends at a converged estimate its probe came back to
     RoundPathNoise previousRound;  // the last round's path noise, where its recordings resolve it
     // The rounds that settled at the estimate since it last moved (pooled_rounds.h), if any.
@@ -404,6 +409,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         malloc_trim(0);  // the solver's many small blocks leave the resident set
 
         FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out);
+        r.broadStride = std::exchange(atStride, false);
         // A round that settled at the pool's estimate joins it; one that moved, or the first
         // round recorded at an estimate, starts a pool of its own. Both as lobe confirmation left
         // the round: it may have held a parameter the pool has free.
@@ -471,6 +477,16 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         growth = pathFactor / recordFactor;  // the next round's paths against this one's
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
         bool importanceTaken = false;        // the next round's importance, already at theta
+        // Recordings that cannot see the broader lobe their estimate went towards: the next round
+        // records broader, with the same paths, rather than more of them.
+        if (!strided && !r.probe && rerecords && options.recordingFollowsEstimate && !exact &&
+            round + 1 < maxRounds)
+            if (std::optional<std::vector<PhongMaterial>> stride =
+                    broadStride(out.materials, recorded.materials, theta.materials)) {
+                theta.materials = std::move(*stride);
+                strided = atStride = true;
+                result.converged = false;
+            }
         if (result.converged) {
             const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
             const Settled next = settle<P>(result, out, params, options, pooledFactor, !exact,
@@ -506,12 +522,12 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     joinable ? recordFactor * growth : std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
             }
-        } else if (!r.probe && round >= 2 && !exact && movedPast) {
+        } else if (!atStride && !r.probe && round >= 2 && !exact && movedPast) {
             // Not settled, by more than the precision target allows, once the estimate has
             // travelled from the start (rounds 0 and 1, as for the rounds' scatter); not a probe's
-            // move from the sharper lobe it was sent to: recordings this sparse may keep it
-            // jumping between states they cannot tell apart (docs/design/fitter.md, "Rounds that
-            // do not settle").
+            // move from the sharper lobe it was sent to, nor a round a stride follows: recordings
+            // this sparse may keep it jumping between states they cannot tell apart
+            // (docs/design/fitter.md, "Rounds that do not settle").
             pathFactor *= unsettledGrowth(result, options, pathFactor, growth);
             growth = pathFactor / recordFactor;
         }

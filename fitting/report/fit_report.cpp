@@ -73,6 +73,7 @@ nlohmann::json toJson(const FitResult& result, const std::vector<std::string>& m
                           {"path_factor", r.pathFactor},
                           {"pooled_rounds", r.pooledRounds},
                           {"probe", r.probe},
+                          {"broad_stride", r.broadStride},
                           {"time_s", r.timeSeconds},
                           {"record_time_s", r.recordSeconds},
                           {"rmse", r.rmse},
