@@ -1159,18 +1159,16 @@ TEST(Fitter, AnExponentHeldBroaderIsReportedThereAndRecordedAtTheStart) {
 }
 
 // Recordings that resolve n only within a factor 3 of the n they are recorded at, as the Cornell
-// box's under a 40-degree light (docs/design/fitter.md, "A broad stride"): further away, the
-// paths' constants carry noise of relative standard deviation `far`, within it `near`; both
-// shrink as the paths grow.
+// box's under a 40-degree light (docs/design/fitter.md, "A broad stride"): noisyRecorder's,
+// averaged, with noise `far` further away and `near` within.
 PathRecorder nearSightedRecorder(const SphereScene& scene, unsigned seed, double near, double far) {
-    return [scene, seed, near, far](int, const std::vector<PhongMaterial>& theta, int recording,
-                                    const std::vector<float>&, double pathFactor) {
-        PathSet ps = makePaths(scene);
-        const bool sees = std::abs(std::log(theta[0].n / kTruth.n)) < std::log(3.0);
-        addRecordingNoise(ps, seed * 100 + unsigned(recording),
-                          (sees ? near : far) / std::sqrt(pathFactor));
-        return ps;
-    };
+    return
+        [scene, seed, near, far](int view, const std::vector<PhongMaterial>& theta, int recording,
+                                 const std::vector<float>& importance, double pathFactor) {
+            const bool sees = std::abs(std::log(theta[0].n / kTruth.n)) < std::log(3.0);
+            return noisyRecorder(scene, seed * 100, sees ? near : far, true)(
+                view, theta, recording, importance, pathFactor);
+        };
 }
 
 // A probe recorded where the recordings see little, at half the paths, did not come back: its n
