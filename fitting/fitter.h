@@ -87,7 +87,8 @@ struct FitRound {
     int round = 0;
     std::size_t paths = 0;  // traced in the round's recordings, over all views
     // FitOptions::precision's paths where a fitted material is seen, relative to the first round's
-    // (PathRecorder's pathFactor; kProbePaths in a sharper probe's round).
+    // (PathRecorder's pathFactor; kProbePaths in a sharper probe's round, probePaths in a second
+    // one).
     double pathFactor = 1;
     double timeSeconds = 0;    // recording + solving
     double recordSeconds = 0;  // in the recorder

@@ -280,6 +280,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     std::vector<std::vector<float>> importance;  // per view, for the next round's recording
     std::vector<PixelPaths> firstPaths;          // per view, the first round's paths per pixel
     double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
+    // A probe round's paths, and a second probe's from the same start (`probeStart`) where the
+    // first could not tell the converged n from it (probePaths).
+    double probePathFactor = kProbePaths, retryPathFactor = kProbePaths;
+    std::vector<PhongMaterial> probeStart;
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
     std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
     // The converged estimate the last round's probe did not come back to, widened to the probe:
@@ -330,7 +334,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const auto roundBegin = std::chrono::steady_clock::now();
         const std::size_t files = fileResidentBytes();
         const std::size_t programBytes = files - std::min(files, filesAtStart);
-        const double recordFactor = probed ? kProbePaths : pathFactor;
+        const double recordFactor = probed ? probePathFactor : pathFactor;
         const RoundSets sets = recordAll(theta.materials, round, importance, recordFactor);
         const double recordSeconds = secondsSince(roundBegin);
         exact = sets.first == sets.second;
@@ -444,6 +448,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                                              joinable ? joinable->pathFactor : recordFactor}
                             : RoundPathNoise{};
         const bool stop = solveOptions.stopRequested();
+        const bool retry = probed && !probeBack && !probeLeft && !stop &&
+                           recordFactor < retryPathFactor &&
+                           !probeTold(probed->materials, out.materials);
         if (probeBack) {
             probed->rounds = std::move(result.rounds);
             result = std::move(*probed);
@@ -453,7 +460,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         unvouched.reset();
         if (probed) {
             unreturned = Unreturned{probed->materials, out.materials};
-            unvouched = std::move(*probed);
+            unvouched = *probed;
             unvouched->converged = false;
             widenToProbe(unvouched->materials, out.materials);
         } else if (unreturned && probeReturned(unreturned->converged, out.materials)) {
@@ -473,6 +480,13 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             break;
         }
         if (probeLeft) break;
+        if (retry) {
+            probePathFactor = retryPathFactor;
+            growth = probePathFactor / recordFactor;
+            theta.materials = probeStart;
+            importance = nextImportance<P>(observations, sets, params, theta, out, threads);
+            continue;
+        }
         probed.reset();
         growth = pathFactor / recordFactor;  // the next round's paths against this one's
         std::vector<PhongMaterial> sharper;  // where the next round probes (sharper_probe.h)
@@ -512,7 +526,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 probed = result;
                 result.converged = false;
                 result.stopReason = "rounds";
-                growth = kProbePaths / recordFactor;
+                probePathFactor = kProbePaths;
+                retryPathFactor = probePaths(out.materials, pooledFactor);
+                probeStart = sharper;
+                growth = probePathFactor / recordFactor;
             } else {
                 // A pool needs only the paths it lacks.
                 growth = joinable ? pathsThePoolLacks(pooledFactor, next.pathGrowth) / recordFactor

@@ -40,6 +40,25 @@ std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& material
     return any ? at : std::vector<PhongMaterial>{};
 }
 
+double probePaths(const std::vector<MaterialFit>& converged, double pathFactor) {
+    double paths = kProbePaths;
+    for (const MaterialFit& c : converged) {
+        if (!probed(c)) continue;
+        const double goal = std::log(probeFactor(c)) / (3 * kProbeMargin);
+        const double need = pathFactor * std::pow(c.nStd / c.n / goal, 2);
+        if (need <= kMostProbePaths) paths = std::max(paths, need);
+    }
+    return paths;
+}
+
+bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe) {
+    for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s)
+        if (probed(converged[s]) && !probe[s].isUnconstrained("n") &&
+            !tellsApart(converged[s], probe[s]))
+            return false;
+    return true;
+}
+
 bool probeReturned(const std::vector<MaterialFit>& converged,
                    const std::vector<MaterialFit>& probe) {
     for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s) {

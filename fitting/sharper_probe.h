@@ -17,9 +17,15 @@ namespace phongfit {
 // converged one, at most kMaxExponent.
 inline constexpr double kProbeFactor = 4;
 
-// The probe round's paths relative to the first round's (PathRecorder's pathFactor): it asks only
-// where n goes, not for the converged round's precision.
+// The probe round's least paths relative to the first round's (PathRecorder's pathFactor): it asks
+// only where n goes, not for the converged round's precision.
 inline constexpr double kProbePaths = 0.5;
+
+// The most paths a second probe round records to tell a roughly resolved lobe's n from its start,
+// relative to the first round's; and the margin its standard error of log n is asked to keep below
+// probeReturned's.
+inline constexpr double kMostProbePaths = 8;
+inline constexpr double kProbeMargin = 1.5;
 
 // `at` (where the next round would record: the materials' estimates, a held n as estimateOf
 // sends it) with each confirmed lobe's n in `materials` (free, not listed unconstrained, below
@@ -27,12 +33,25 @@ inline constexpr double kProbePaths = 0.5;
 std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials,
                                         std::vector<PhongMaterial> at);
 
+// The paths relative to the first round's for a second probe round from the same start, where
+// the first, at kProbePaths, could not tell a probed lobe's n from its start (probeTold): as many
+// as put its standard error of log n kProbeMargin below what probeReturned asks, predicted from
+// the converged round's `converged` at `pathFactor` times the first round's paths (its variance as
+// 1 / paths); the most any probed lobe needs. kProbePaths (no second probe) where every lobe needs
+// no more, or would need more than kMostProbePaths: the probe cannot vouch for it at a cost below
+// the rounds'.
+double probePaths(const std::vector<MaterialFit>& converged, double pathFactor);
+
 // Whether each probed lobe came back: the probe round tells the converged n from its own start
 // (3 standard errors of log n short of the way between them, and below n) and put its n nearer the
 // converged n than the start (in log n), or within 3 of its own standard errors of it; or the
 // probe round held n (no lobe seen there).
 bool probeReturned(const std::vector<MaterialFit>& converged,
                    const std::vector<MaterialFit>& probe);
+
+// Whether the probe round told each probed lobe's n from its start as probeReturned asks, or held
+// it: else it did not come back for want of paths, whatever the images say.
+bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
 // For a probe that did not come back and no round after it: each probed lobe's n standard error
 // in `converged` raised to reach every n the probe did not rule out: its n and 3 of its standard

@@ -1193,6 +1193,37 @@ TEST(Fitter, AProbeThatDidNotComeBackSettlesNothing) {
     EXPECT_NEAR(r.materials[0].ks[0], kTruth.ks[0], 3 * r.materials[0].ksStd[0]);
 }
 
+// A lobe its converged round resolves only roughly (n 104.7 +- 49 for 60, no precision asked),
+// probed at half the first round's paths from 426, where the probe cannot tell the converged n from
+// its start (753 +- 1036): the next round probes again from the same start with the paths it takes
+// to (probePaths, 2.25 times the first round's) and comes back (52 +- 9.9).
+TEST(Fitter, AProbeThatCouldNotTellIsRecordedAgainWithThePathsToTell) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    FitOptions options;
+    options.precision = 0;
+    const FitResult r =
+        fitMaterials({obs}, noisyRecorder(scene, 2, 1.4, true),
+                     {material(Color3::Constant(0.3), Color3::Constant(0.2), 20)}, options);
+    expectFinite(r);
+    std::size_t probe = 0;
+    while (probe < r.rounds.size() && !r.rounds[probe].probe) ++probe;
+    ASSERT_LT(probe + 1, r.rounds.size()) << "no probe: the case is not tried";
+    const FitRound &converged = r.rounds[probe - 1], &first = r.rounds[probe],
+                   &second = r.rounds[probe + 1];
+    ASSERT_EQ(converged.pooledRounds, 1);
+    EXPECT_EQ(first.pathFactor, kProbePaths);
+    EXPECT_FALSE(probeTold(converged.materials, first.materials));
+    EXPECT_TRUE(second.probe);
+    EXPECT_GT(second.pathFactor, kProbePaths);
+    EXPECT_EQ(second.pathFactor, probePaths(converged.materials, converged.pathFactor));
+    EXPECT_TRUE(probeTold(converged.materials, second.materials));
+    EXPECT_TRUE(r.converged) << r.stopReason;
+    EXPECT_EQ(r.rounds.size(), probe + 2);
+    EXPECT_EQ(r.materials[0].n, converged.materials[0].n);
+    expectCovered(r.materials[0], kTruth);
+}
+
 // Paths that grow average their noise down. A round recorded at a settled round's estimate with
 // more paths moves from it by both rounds' path noise, the larger part the settled round's; by its
 // own standard errors alone the move would not have settled and the paths would have grown again.

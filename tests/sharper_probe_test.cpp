@@ -67,6 +67,36 @@ TEST(SharperProbe, ComesBackNearerTheConvergedExponentThanTheProbe) {
     EXPECT_FALSE(probeReturned({converged, converged}, {lobe(1000, 10), lobe(5000, 10)}));
 }
 
+// A second probe round's paths, where the first could not tell the converged n from its start
+// (the Cornell box under a 5-degree light, n 1, ks 0.05: n 1.19 +- 0.125 at 32 times the first
+// round's paths, the probe at half of them 6.7 +- 4.4): enough that its predicted standard error of
+// log n (the converged round's, as 1 / sqrt(paths)) is kProbeMargin short of what probeReturned
+// asks; the most any probed lobe needs. A lobe resolved well enough for kProbePaths, one it would
+// take more than kMostProbePaths to resolve (n 9232 +- 3330 at 64x), or a held one, asks for none
+// (kProbePaths). The first probe told the converged n from its start where it resolved its n to
+// a third of the probe's factor in log n, or held it.
+TEST(SharperProbe, ASecondProbeRecordsThePathsToTellARoughLobeFromItsStart) {
+    EXPECT_EQ(probePaths({lobe(1000, 10)}, 32), kProbePaths);
+    const MaterialFit weak = lobe(1.192, 0.125);
+    const double paths = probePaths({weak}, 32);
+    EXPECT_GT(paths, kProbePaths);
+    EXPECT_LE(paths, kMostProbePaths);
+    const double probeStd = 0.125 / 1.192 * std::sqrt(32 / paths);
+    EXPECT_NEAR(3 * kProbeMargin * probeStd, std::log(kProbeFactor), 1e-12);
+    // An imprecise lobe is probed further (exp(3 x 0.6)), and asked for less than log 4 implies.
+    const double further = probePaths({lobe(100, 60)}, 1);
+    EXPECT_NEAR(3 * kProbeMargin * 0.6 * std::sqrt(1 / further), 3 * 0.6, 1e-12);
+    EXPECT_EQ(probePaths({lobe(9232, 3330)}, 64), kProbePaths);
+    MaterialFit held = weak;
+    held.unconstrained = {"n"};
+    EXPECT_EQ(probePaths({held}, 32), kProbePaths);
+    EXPECT_EQ(probePaths({lobe(1000, 10), weak, lobe(9232, 3330)}, 32), paths);
+    EXPECT_FALSE(probeTold({weak}, {lobe(6.7, 4.4)}));
+    EXPECT_TRUE(probeTold({weak}, {lobe(6.7, 0.5)}));
+    EXPECT_TRUE(probeTold({weak}, {held}));
+    EXPECT_FALSE(probeTold({lobe(1000, 10), weak}, {lobe(4000, 10), lobe(6.7, 4.4)}));
+}
+
 // A probe left in the last round at n 6000 +- 1000 widens the converged n 1500 +- 100 to reach
 // 9000; one that cannot tell 1500 from its start, 6000, widens it to reach the start, and as far
 // as 3 of its own standard errors beyond where it went (the Cornell box under the 40-degree light,
