@@ -61,11 +61,11 @@ bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<Mate
 
 bool probeReturned(const std::vector<MaterialFit>& converged,
                    const std::vector<MaterialFit>& probe) {
+    // A probe that cannot tell the converged n from its own start vouches for nothing.
+    if (!probeTold(converged, probe)) return false;
     for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s) {
         const MaterialFit &c = converged[s], &p = probe[s];
         if (!probed(c) || p.isUnconstrained("n")) continue;
-        // A probe that cannot tell the converged n from its own start vouches for nothing.
-        if (!tellsApart(c, p)) return false;
         const double reach = std::max(0.5 * std::log(probeFactor(c)), threeStd(p));
         if (std::abs(std::log(p.n) - std::log(c.n)) > reach) return false;
     }
