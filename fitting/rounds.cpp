@@ -448,6 +448,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                                              joinable ? joinable->pathFactor : recordFactor}
                             : RoundPathNoise{};
         const bool stop = solveOptions.stopRequested();
+        // A probe that could not tell is probed again, once: after the second probe
+        // recordFactor equals retryPathFactor.
         const bool retry = probed && !probeBack && !probeLeft && !stop &&
                            recordFactor < retryPathFactor &&
                            !probeTold(probed->materials, out.materials);

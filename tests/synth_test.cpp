@@ -233,6 +233,23 @@ TEST(SynthConfig, SecondOutsideConfigHoldsEveryCell) {
     }
 }
 
+// The third set outside the matrix (README, "Outside the matrix") reads: 3 lights x 4 exponents x
+// 3 materials, the exponents beyond every other set's up to the fitter's bound.
+TEST(SynthConfig, ThirdOutsideConfigReachesTheExponentBound) {
+    const SynthConfig config =
+        expectGridConfig("outside_third.json", 3, 36, {150, 15000, 200000, 1e6});
+    double most = 0;
+    for (const char* file : {"matrix.json", "outside.json", "outside_second.json"})
+        for (const GroupConfig& g :
+             loadSynthConfig(PHONGFIT_CONFIGS_DIR "/" + std::string(file)).groups)
+            if (g.grid)
+                most = std::max(most, *std::max_element(g.grid->n.begin(), g.grid->n.end()));
+    for (const GroupConfig& g : config.groups) {
+        ASSERT_TRUE(g.grid) << g.name;
+        EXPECT_GT(g.grid->n[2], most) << g.name;
+    }
+}
+
 TEST_F(Synth, BakedSceneKeepsTheFileAndSetsTheDefaults) {
     const std::string in = kScenes + "/sphere_orbit.xml";
     const fs::path out = path("baked.xml");
