@@ -560,6 +560,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // A probe that did not come back, with no later one that did: the final estimate's n
         // reaches the lobe it stayed at.
         if (unreturned && !vouched) widenToProbe(result.materials, unreturned->probe);
+        // Nor could a lobe within a probe's factor of the bound be probed sharper.
+        if (rerecords && options.recordingFollowsEstimate) widenToBound(result.materials);
         widenToRoundScatter(result);
         // Stopped before showing where the estimate stops (a probe left unvouched has its own
         // widening): while it still moved, or settled round by round but not as precise as asked,

@@ -86,4 +86,10 @@ void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<Materia
     }
 }
 
+void widenToBound(std::vector<MaterialFit>& materials) {
+    for (MaterialFit& m : materials)
+        if (!m.isUnconstrained("n") && m.n > 0 && !probed(m))
+            m.nStd = std::max(m.nStd, kMaxExponent - m.n);
+}
+
 }  // namespace phongfit

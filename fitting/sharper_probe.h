@@ -59,4 +59,8 @@ bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<Mate
 // least the start.
 void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
+// Each free lobe in `materials` too near kMaxExponent to be probed (n times kProbeFactor above it):
+// no recording went sharper, so its n standard error reaches the bound.
+void widenToBound(std::vector<MaterialFit>& materials);
+
 }  // namespace phongfit

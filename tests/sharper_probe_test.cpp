@@ -122,5 +122,22 @@ TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
     EXPECT_EQ(converged[0].n, 1500);
 }
 
+// A lobe within kProbeFactor of kMaxExponent, never probed (issue 12's quad light at n 1e6 ended
+// at 473673 +- 82400, 6.4 standard errors short): its n reaches the bound. One a probe can reach,
+// a held n and one already as wide keep theirs.
+TEST(SharperProbe, ALobeTooNearTheBoundToProbeReachesIt) {
+    MaterialFit held = lobe(5e5, 0);
+    held.unconstrained = {"n"};
+    std::vector<MaterialFit> fits{lobe(473673, 82400), lobe(kMaxExponent / kProbeFactor, 100), held,
+                                  lobe(8e5, 5e5), lobe(kMaxExponent, 10)};
+    widenToBound(fits);
+    EXPECT_DOUBLE_EQ(fits[0].nStd, kMaxExponent - 473673);
+    EXPECT_EQ(fits[1].nStd, 100);
+    EXPECT_EQ(fits[2].nStd, 0);
+    EXPECT_EQ(fits[3].nStd, 5e5);
+    EXPECT_EQ(fits[4].nStd, 10);
+    EXPECT_EQ(fits[0].n, 473673);
+}
+
 }  // namespace
 }  // namespace phongfit
