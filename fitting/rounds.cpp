@@ -285,6 +285,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     double probePathFactor = kProbePaths, retryPathFactor = kProbePaths;
     std::vector<PhongMaterial> probeStart;
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
+    // Each round records at the last estimate, so what it sees depends on it (scans of the
+    // broader side, strides and probes apply).
+    const bool followsEstimate = rerecords && options.recordingFollowsEstimate;
     std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
     // The converged estimate the last round's probe did not come back to, widened to the probe:
     // what the fit reports if it ends before another round.
@@ -344,8 +347,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // (rounds 0 and 1, whose lobes can be the start's), also tries the broader side of its
         // confirmed lobes.
         std::vector<bool> scanBroader;
-        if (round >= 2 && rerecords && options.recordingFollowsEstimate && options.scanStart &&
-            !exact && !probed)
+        if (round >= 2 && followsEstimate && options.scanStart && !exact && !probed)
             scanBroader = lobesToScan(result.rounds.back().materials);
         // Later rounds start where the last one ended, near enough for the instruments.
         // Its per-pixel state is freed once the round is solved, before the next importance and
@@ -495,8 +497,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         bool importanceTaken = false;        // the next round's importance, already at theta
         // Recordings that cannot see the broader lobe their estimate went towards: the next round
         // records broader, with the same paths, rather than more of them.
-        if (!strided && !r.probe && rerecords && options.recordingFollowsEstimate && !exact &&
-            round + 1 < maxRounds)
+        if (!strided && !r.probe && followsEstimate && !exact && round + 1 < maxRounds)
             if (std::optional<std::vector<PhongMaterial>> stride =
                     broadStride(out.materials, recorded.materials, theta.materials)) {
                 theta.materials = std::move(*stride);
@@ -505,9 +506,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             }
         if (result.converged) {
             const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
-            const Settled next = settle<P>(result, out, params, options, pooledFactor, !exact,
-                                           rerecords && options.recordingFollowsEstimate && !exact,
-                                           round + 1 == maxRounds, theta.materials);
+            const Settled next =
+                settle<P>(result, out, params, options, pooledFactor, !exact,
+                          followsEstimate && !exact, round + 1 == maxRounds, theta.materials);
             if (next.stop) break;
             sharper = next.sharper;
             if (sharper.empty() && round + 1 < maxRounds) {
@@ -518,7 +519,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 importanceTaken = true;
                 if (mostPathGain(importance, firstPaths, recordFactor) < kLeastPathGain) {
                     result.stopReason = "path cap";
-                    if (rerecords && options.recordingFollowsEstimate && allResolved(out.materials))
+                    if (followsEstimate && allResolved(out.materials))
                         sharper = sharperProbe(out.materials, theta.materials);
                     if (sharper.empty()) break;
                     importanceTaken = false;
@@ -561,7 +562,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // reaches the lobe it stayed at.
         if (unreturned && !vouched) widenToProbe(result.materials, unreturned->probe);
         // Nor could a lobe within a probe's factor of the bound be probed sharper.
-        if (rerecords && options.recordingFollowsEstimate) widenToBound(result.materials);
+        if (followsEstimate) widenToBound(result.materials);
         widenToRoundScatter(result);
         // Stopped before showing where the estimate stops (a probe left unvouched has its own
         // widening): while it still moved, or settled round by round but not as precise as asked,
