@@ -200,6 +200,19 @@ double Objective<P>::crossScale(const double* y, const std::vector<double>& weig
         .squares;
 }
 
+template <int P>
+Eigen::Vector2d Objective<P>::crossDifference(const double* y, const double* base) {
+    return sumPixels(
+        prep_.seeingMaterial, Eigen::Vector2d::Zero().eval(),
+        [&](std::size_t i, Eigen::Vector2d& sum, Scratch& scratch) {
+            const UsedPixel& u = prep_.pixels[i];
+            const double d =
+                residual(0, u, y, scratch, false).dot(residual(1, u, y, scratch, false)) -
+                residual(0, u, base, scratch, false).dot(residual(1, u, base, scratch, false));
+            sum += Eigen::Vector2d(d, d * d);
+        });
+}
+
 template class Objective<kRgbBlock>;
 template class Objective<kGreyBlock>;
 

@@ -108,6 +108,11 @@ public:
     void leastSquaresSums(const double* y, const std::vector<double>& weights, bool cross,
                           double& squares, Eigen::VectorXd* gradient, Eigen::MatrixXd* gramian);
 
+    // Over the same pixels, the sum of d = r_A . r_B at y minus at `base` (robust weights 1),
+    // and of d^2: how much better the cross products fit at y, and (the pixels' recordings being
+    // independent) the variance of that sum about its expectation, its sum of squares.
+    Eigen::Vector2d crossDifference(const double* y, const double* base);
+
     // Over the same pixels, the sum of w (|r_A|^2 + |r_B|^2) / 2: at least |w r_A . r_B| pixel by
     // pixel, the scale of the recordings' noise against which the cross products are minimised.
     double crossScale(const double* y, const std::vector<double>& weights);

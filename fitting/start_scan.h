@@ -23,6 +23,8 @@ void matchExposure(Objective<P>& objective, ParameterState<P>& params);
 // The step is exact where every recorded term has one vertex on the material, as under direct
 // light: I is then linear in kd and ks. The start competes first, and another exponent must do
 // better by more than rounding: where the images show no lobe every exponent fits equally well.
+// A candidate whose lobe the two recordings' cross products single out overrules that pick: a
+// faint broad lobe adds more of the recordings' variance to least squares than it removes.
 template <int P>
 void scanExponents(Objective<P>& objective, ParameterState<P>& params);
 

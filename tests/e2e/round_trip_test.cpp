@@ -44,10 +44,10 @@ protected:
 
     // Renders `scene` with `truth` defines into NAME.exr.
     std::string render(const std::string& scene, const std::map<std::string, std::string>& truth,
-                       const std::string& name, int spp) {
+                       const std::string& name, int spp, const std::string& seed = "11") {
         std::vector<std::string> args = {
             PHONGFIT_EXE,        "render", scene, "-o",     path(name + ".exr"), "--spp",
-            std::to_string(spp), "--seed", "11",  "--quiet"};
+            std::to_string(spp), "--seed", seed,  "--quiet"};
         const auto d = defines(truth);
         args.insert(args.end(), d.begin(), d.end());
         const auto r = test::runProcess(args);
@@ -505,6 +505,27 @@ TEST_F(RoundTrip, SphereUnderTheKernerProbeIsRecovered) {
     EXPECT_EQ(report["views"][0]["max_depth"].get<int>(), 2) << "direct light only";
     // Light samples and lobe samples both reach the lobe: a converged lobe is probed sharper.
     EXPECT_TRUE(report["rounds"].back()["probe"].get<bool>());
+}
+
+// outside_third.json's cell 0025 as `synth` renders it: a faint broad lobe (kd 0.5, ks 0.01,
+// n 150) under the Kerner probe, fitted from a sharp start (n 15000) at recording seed 0. Pooled
+// least squares in the start's scan kept the start (the broad lobe adds more of the recordings'
+// variance than squared error it removes): ks went to 0, n was held, and the fit "converged" in
+// two rounds with kd 1.3% high, 8.8 of its standard errors (1 of the 6 recording seeds measured;
+// the others found the lobe). The cross products overrule that pick (start_scan.cpp,
+// crossSignificant).
+TEST_F(RoundTrip, AFaintBroadLobeIsFoundFromASharpStart) {
+    const std::map<std::string, std::string> truth = {
+        {"kd", "0.5"}, {"ks", "0.01"}, {"n", "150"}, {"width", "256"}, {"height", "256"}};
+    const std::string image = render(kEnvmap, truth, "faint", 256, "8446970460851969503");
+    std::vector<std::string> extra = {"--grey",    "--kd",  "0.3",       "--ks", "0.3",
+                                      "--n",       "15000", "--rounds",  "2",    "-D",
+                                      "width=256", "-D",    "height=256"};
+    const auto m = fit({kEnvmap + ":" + image}, extra, "fit", 0)["materials"]["sphere"];
+    const auto& u = m["unconstrained"];
+    EXPECT_EQ(std::find(u.begin(), u.end(), "n"), u.end()) << u.dump();
+    expectCovered(m, {0.5, 0.5, 0.5}, {0.01, 0.01, 0.01}, 150, "faint lobe");
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(m["kd"][c].get<double>(), 0.5, 0.0025) << c;
 }
 
 TEST_F(RoundTrip, NoSpecularLobeLeavesNUnconstrained) {
