@@ -64,7 +64,7 @@ void finishExponentUncertainty(MaterialFit& fit) {
     if (!(fit.n > 0)) return;
     fit.nStd = std::max(fit.nStd, logNormalStd(fit.n, fit.logNStd));
     if (!fit.isUnconstrained("n") && !lobeHoldsExponent(fit)) fit.unconstrained.push_back("n");
-    if (fit.isUnconstrained("n") || fit.nStd < fit.n) return;
+    if (fit.isUnconstrained("n")) return;
     fit.nStd =
         std::max(fit.nStd, std::min(fit.n * std::expm1(3 * fit.logNStd), kMaxExponent - fit.n) / 3);
 }

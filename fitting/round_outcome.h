@@ -42,11 +42,12 @@ double logNormalStd(double n, double s);
 bool lobeHoldsExponent(const MaterialFit& fit);
 
 // A fit's result, n's uncertainty as far as its standard errors reach: nStd at least
-// logNormalStd's, and n listed unconstrained where no lobe holds it. An n a lobe holds only on one
-// side (nStd >= n: a lobe sharper than a pixel, bounded from below) has an nStd reaching log n's
-// 3-standard-error upper end, n e^(3 s): the log-normal's standard deviation falls short of it
-// (n 2660 +- 7384, s 1.1, for a true 30000). s is the fit's own (logNStd), not one read back from
-// nStd, whose widenings in n (a drift, a probe's reach) are reaches already.
+// logNormalStd's, and n listed unconstrained where no lobe holds it. An n a lobe holds has an nStd
+// reaching log n's 3-standard-error upper end, n e^(3 s) (capped at kMaxExponent): the
+// log-normal's standard deviation falls short of it, by a few percent where s is small and by
+// far where the images bound n from one side (n 2660 +- 7384, s 1.1, for a true 30000). s is the
+// fit's own (logNStd), not one read back from nStd, whose widenings in n (a drift, a probe's
+// reach) are reaches already.
 void finishExponentUncertainty(MaterialFit& fit);
 
 // Material block `m` at `params`' point, with standard errors `stdNatural` (its natural ones)

@@ -365,20 +365,27 @@ TEST(Resolution, ExponentStandardErrorIsTheLogNormalSpread) {
     EXPECT_EQ(logNormalStd(100, 0), 0);  // held
 }
 
+// A grey material's fit: kd, ks and their standard errors, n with s its log's standard error
+// (nStd n s, as a round reports it).
+MaterialFit greyLobeFit(double kd, double kdStd, double ks, double ksStd, double n, double s) {
+    MaterialFit fit;
+    fit.kd = Color3::Constant(kd);
+    fit.kdStd = Color3::Constant(kdStd);
+    fit.ks = Color3::Constant(ks);
+    fit.ksStd = Color3::Constant(ksStd);
+    fit.n = n;
+    fit.logNStd = s;
+    fit.nStd = n * s;
+    return fit;
+}
+
 // The Cornell box under its 40-degree light at n 30000, ks 0.05 (the recovery matrix's cell 0133):
 // the reflection's rim is sharper than a pixel, the images bound n only from below, and the fit
 // ends at n 2660 with s 1.1 in log n. The log-normal's spread, n 2660 +- 7384, reaches 24800 at 3
 // standard errors, short of the truth; log n's own 3 standard errors reach 2660 e^3.3 = 72000.
 // The result's nStd reaches that far, and a lobe the images confirm keeps n listed free.
 TEST(Resolution, AnExponentBoundOnlyFromBelowReachesLogNsUpperEnd) {
-    MaterialFit fit;
-    fit.kd = Color3::Constant(0.699);
-    fit.kdStd = Color3::Constant(0.0056);
-    fit.ks = Color3::Constant(0.0503);
-    fit.ksStd = Color3::Constant(0.0024);
-    fit.n = 2660;
-    fit.logNStd = 1.1;
-    fit.nStd = fit.n * fit.logNStd;
+    MaterialFit fit = greyLobeFit(0.699, 0.0056, 0.0503, 0.0024, 2660, 1.1);
     EXPECT_TRUE(lobeHoldsExponent(fit));
     finishExponentUncertainty(fit);
     EXPECT_TRUE(fit.unconstrained.empty());
@@ -406,6 +413,27 @@ TEST(Resolution, AnExponentBoundOnlyFromBelowReachesLogNsUpperEnd) {
     fit.nStd = 180;
     finishExponentUncertainty(fit);
     EXPECT_EQ(fit.nStd, 180);
+}
+
+// A resolved n's uncertainty is log-normal too, and its standard deviation falls short of log n's
+// 3 standard errors on the sharp side: n 2000 with s 0.5 gives 2000 +- 1208, short of 8000 (2.77
+// s away in log n) by 5 of those. Every n a lobe holds reaches n e^(3 s): 3% beyond n s at s 0.02.
+TEST(Resolution, AResolvedExponentReachesLogNsUpperEnd) {
+    MaterialFit fit = greyLobeFit(0.05, 0.0003, 0.9, 0.01, 2000, 0.5);
+    const double truth = 8000;  // log(8000 / 2000) = 2.77 s
+    EXPECT_GT(truth - fit.n, 3 * logNormalStd(fit.n, fit.logNStd));
+    finishExponentUncertainty(fit);
+    EXPECT_NEAR(fit.nStd, fit.n * std::expm1(1.5) / 3, 1e-9 * fit.nStd);
+    EXPECT_LE(truth - fit.n, 3 * fit.nStd);
+    EXPECT_TRUE(fit.unconstrained.empty());
+    // Known to a factor of 4.5 at 3 standard errors: listed unresolved.
+    EXPECT_EQ(unresolvedParameters(fit), (std::vector<std::string>{"n"}));
+    fit.n = 3000;
+    fit.logNStd = 0.02;
+    fit.nStd = 60;
+    finishExponentUncertainty(fit);
+    EXPECT_NEAR(fit.nStd, 3000 * std::expm1(0.06) / 3, 1e-9);
+    EXPECT_TRUE(unresolvedParameters(fit).empty());
 }
 
 // No lobe means no lobe: a sphere with ks = 0 under a 40-degree light (matrix cell 0129) ended with
@@ -1203,7 +1231,8 @@ TEST(Fitter, AProbeThatDidNotComeBackSettlesNothing) {
 // A lobe its converged round resolves only roughly (n 104.7 +- 49 for 60, no precision asked),
 // probed at half the first round's paths from 426, where the probe cannot tell the converged n from
 // its start (753 +- 1036): the next round probes again from the same start with the paths it takes
-// to (probePaths, 2.25 times the first round's) and comes back (52 +- 9.9).
+// to (probePaths, 2.25 times the first round's) and comes back (52 +- 9.9). The rounds stop there,
+// but s 0.47 puts log n's upper 3-standard-error end at 4.1 n: the result is "unresolved".
 TEST(Fitter, AProbeThatCouldNotTellIsRecordedAgainWithThePathsToTell) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
@@ -1225,7 +1254,8 @@ TEST(Fitter, AProbeThatCouldNotTellIsRecordedAgainWithThePathsToTell) {
     EXPECT_GT(second.pathFactor, kProbePaths);
     EXPECT_EQ(second.pathFactor, probePaths(converged.materials, converged.pathFactor));
     EXPECT_TRUE(probeTold(converged.materials, second.materials));
-    EXPECT_TRUE(r.converged) << r.stopReason;
+    EXPECT_FALSE(r.converged);
+    EXPECT_EQ(r.stopReason, "unresolved");
     EXPECT_EQ(r.rounds.size(), probe + 2);
     EXPECT_EQ(r.materials[0].n, converged.materials[0].n);
     expectCovered(r.materials[0], kTruth);
