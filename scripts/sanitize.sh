@@ -61,8 +61,8 @@
 # - RoundTrip.AFaintBroadLobeIsFoundFromASharpStart (session 61's CI: 202 s under ASan, 20 s
 #   without, the run 2806 s; most of it the 256x256 envmap render it must match bit for bit): the
 #   envmap's render and recording run under ASan in RoundTrip.SphereUnderTheKernerProbeIsRecovered,
-#   and the start scan's cross-products comparison (crossSignificant) in
-#   StartScan.NoLobeUnderANoisySkyStaysLobeless.
+#   and the start scan's cross-products comparison (crossSignificant, 24 of them) in
+#   Fitter.DoesNotDependOnTheThreadCount.
 # - the analytic sphere's two high-spp cases (session 57's CI: 37 s and 22 s, the run 2399 s):
 #   Materials/AnalyticSphere.InteriorPixelsMatchTheBoxFilteredClosedForm/n5000_spp4096 and
 #   .../n300_spp2048, the same comparison as its three 256-spp cases, which run under ASan.

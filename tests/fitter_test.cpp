@@ -88,16 +88,13 @@ PathSet makePaths(const SphereScene& scene) {
                                        : Color<float>(0.1f, 0.1f, 0.1f));
             if (at) {
                 const std::uint32_t slot = scene.twoSlots && x >= scene.size / 2 ? 1 : 0;
-                const auto addTerm = [&](const Color3& constant,
-                                         const std::vector<PathVertex>& vertices) {
-                    appendTerm(ps, pixel, constant, vertices);
-                };
                 for (const Light& light : scene.lights) {
                     const Vec3d wi = at->frame.toLocal(light.toLight.normalized());
                     if (wi.z() <= 0) continue;
                     const float logCos = float(logCosAlpha(wi, at->wo));
                     for (int k = 0; k < scene.split; ++k)
-                        addTerm(light.irradiance * wi.z() / scene.split, {{logCos, slot}});
+                        appendTerm(ps, pixel, light.irradiance * wi.z() / scene.split,
+                                   {{logCos, slot}});
                 }
                 const auto mirrored = sphereAt(-px, py);
                 const Vec3d wi0 = at->frame.toLocal(scene.lights[0].toLight.normalized());
@@ -107,8 +104,9 @@ PathSet makePaths(const SphereScene& scene) {
                     if (wiOther.z() > 0) {
                         const float own = float(logCosAlpha(wi0, at->wo));
                         const float other = float(logCosAlpha(wiOther, mirrored->wo));
-                        addTerm(0.4 * scene.lights[0].irradiance * wi0.z() * wiOther.z(),
-                                {{own, slot}, {other, scene.twoSlots ? 1 - slot : slot}});
+                        appendTerm(ps, pixel,
+                                   0.4 * scene.lights[0].irradiance * wi0.z() * wiOther.z(),
+                                   {{own, slot}, {other, scene.twoSlots ? 1 - slot : slot}});
                     }
                 }
             }
