@@ -1712,6 +1712,7 @@ PathSet skyPaths(double sky, int directions, unsigned seed) {
     ps.spp = directions;
     ps.slots = 1;
     ps.pixelStart.push_back(0);
+    const std::vector<Light> lights = threeLights().lights;
     for (int y = 0; y < size; ++y) {
         for (int x = 0; x < size; ++x) {
             const auto at = sphereAt((x + 0.5) / size * 2 - 1, 1 - (y + 0.5) / size * 2);
@@ -1720,16 +1721,16 @@ PathSet skyPaths(double sky, int directions, unsigned seed) {
                 appendTerm(ps, std::uint32_t(y * size + x), Color3::Constant(constant),
                            {{float(logCosAlpha(wi, at->wo)), 0}});
             };
-            for (const Light& light : threeLights().lights)
-                if (const Vec3d wi =
-                        at ? at->frame.toLocal(light.toLight.normalized()) : Vec3d::Zero().eval();
-                    wi.z() > 0)
-                    addTerm(light.irradiance[0] * wi.z(), wi);
-            for (int k = 0; at && k < directions; ++k) {
-                const double z = uniform(rng), r = std::sqrt(1 - z * z);
-                const double phi = 2 * kPi * uniform(rng);
-                addTerm(sky * 2 * kPi * z / directions,
-                        Vec3d(r * std::cos(phi), r * std::sin(phi), z));
+            if (at) {
+                for (const Light& light : lights)
+                    if (const Vec3d wi = at->frame.toLocal(light.toLight.normalized()); wi.z() > 0)
+                        addTerm(light.irradiance[0] * wi.z(), wi);
+                for (int k = 0; k < directions; ++k) {
+                    const double z = uniform(rng), r = std::sqrt(1 - z * z);
+                    const double phi = 2 * kPi * uniform(rng);
+                    addTerm(sky * 2 * kPi * z / directions,
+                            Vec3d(r * std::cos(phi), r * std::sin(phi), z));
+                }
             }
             ps.pixelStart.push_back(std::uint32_t(ps.terms.size()));
         }
