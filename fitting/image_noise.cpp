@@ -24,27 +24,43 @@ struct NoiseSums {
     }
 };
 
-// kappa from each pixel's r_A . r_B (`cross`) against its paths' variance (`variance`, over
-// channels): the median of their ratios over the pixels whose paths vary at least as much as the
-// median pixel's, divided by 0.455, the median of a chi-square with one degree of freedom over
-// its mean. A ratio of sums would be the ratio at the few pixels whose paths vary most (a
-// sub-pixel highlight's, whose noise kappa is for); a mean of ratios is ruled by pixels whose
-// noise no recorded path carries (a silhouette's background, an image's fireflies).
-double noiseScale(const std::vector<double>& cross, const std::vector<double>& variance) {
-    std::vector<double> sorted = variance;
-    const auto middle = sorted.begin() + std::ptrdiff_t(sorted.size() / 2);
-    std::nth_element(sorted.begin(), middle, sorted.end());
-    const double median = sorted.empty() ? 0.0 : *middle;
-    std::vector<double> ratios;
-    for (std::size_t i = 0; i < cross.size(); ++i)
-        if (variance[i] >= median && variance[i] > 0) ratios.push_back(cross[i] / variance[i]);
-    if (ratios.empty()) return 0;
-    const auto half = ratios.begin() + std::ptrdiff_t(ratios.size() / 2);
-    std::nth_element(ratios.begin(), half, ratios.end());
-    return std::max(0.0, *half / kChiSquareMedian);
+// The median of `values` (reordered) and its standard error: half the distribution-free 68%
+// interval of the median, between the order statistics sqrt(N) / 2 either side of it.
+struct Median {
+    double value = 0, error = 0;
+};
+
+Median medianOf(std::vector<double>& values) {
+    if (values.empty()) return {};
+    std::sort(values.begin(), values.end());
+    const double count = double(values.size()), reach = std::sqrt(count) / 2;
+    const auto at = [&](double rank) {
+        return values[std::size_t(std::clamp(rank, 0.0, count - 1))];
+    };
+    return {at(count / 2), 0.5 * (at(count / 2 + reach) - at(count / 2 - reach))};
 }
 
 }  // namespace
+
+double noiseScale(const std::vector<PixelNoise>& pixels) {
+    std::vector<double> variances;
+    for (const PixelNoise& p : pixels) variances.push_back(p.variance);
+    const auto middle = variances.begin() + std::ptrdiff_t(variances.size() / 2);
+    std::nth_element(variances.begin(), middle, variances.end());
+    const double least = variances.empty() ? 0.0 : *middle;
+    std::vector<double> cross, sum, difference;
+    for (const PixelNoise& p : pixels)
+        if (p.variance >= least && p.variance > 0) {
+            cross.push_back(p.cross / p.variance);
+            sum.push_back((p.cross + p.halfDifference) / p.variance);
+            difference.push_back(p.halfDifference / p.variance);
+        }
+    const double product = std::max(0.0, medianOf(cross).value / kChiSquareMedian);
+    const Median s = medianOf(sum), d = medianOf(difference);
+    if (!(d.value / kChiSquareMedian <= kModelledRecordingNoise)) return product;
+    return std::max(product,
+                    (s.value - d.value - 2 * std::hypot(s.error, d.error)) / kChiSquareMedian);
+}
 
 template <int P>
 std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
@@ -55,7 +71,7 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
     const UsedPixels& prep = objective.pixels();
     const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
     const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size)};
-    std::vector<double> cross(prep.seeingMaterial), variances(prep.seeingMaterial);
+    std::vector<PixelNoise> noise(prep.seeingMaterial);
     const NoiseSums sums = objective.sumPixels(
         prep.seeingMaterial, zero,
         [&](std::size_t i, NoiseSums& sum, typename Objective<P>::Scratch& scratch) {
@@ -67,8 +83,7 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                                           &scratch.jacobians[k]);
                 variance += 0.5 * objective.pathVariance(k, u, y.data(), scratch);
             }
-            cross[i] = r[0].dot(r[1]);
-            variances[i] = variance.sum();
+            noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), variance.sum()};
             const std::span<const std::uint32_t> slots = prep.slotsOf(u);
             std::vector<Eigen::Index>& indices = scratch.indices;
             indices.clear();
@@ -81,7 +96,7 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
             sum.gram(indices, indices) += j.transpose() * j;
             sum.noise(indices, indices) += j.transpose() * variance.asDiagonal() * j;
         });
-    return naturalStd<P>(sums.gram, noiseScale(cross, variances) * sums.noise, held);
+    return naturalStd<P>(sums.gram, noiseScale(noise) * sums.noise, held);
 }
 
 void applyImageNoise(MaterialFit& fit) {

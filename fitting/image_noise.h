@@ -6,7 +6,8 @@
 // pixel holds a parameter (a highlight smaller than a pixel) it cannot see that pixel's noise
 // (docs/design/fitter.md, "A parameter held by one noisy pixel"). The model is an image rendered
 // with independent samples; stratified ones (Sobol points) shrink some pixels' variance far more
-// than others', and there it errs on the wide side.
+// than others': wide at the Cornell box's highlight, narrow at a point-lit sphere's, whose smooth
+// pixels Sobol points render almost without noise.
 #pragma once
 
 #include <vector>
@@ -16,6 +17,35 @@
 #include "parameter_state.h"
 
 namespace phongfit {
+
+// What kappa is read from, in one pixel that sees a material: r_A . r_B, |r_A - r_B|^2 / 4 (the
+// two recordings' residuals, over channels) and the variance of one of its paths (over channels).
+struct PixelNoise {
+    double cross = 0, halfDifference = 0, variance = 0;
+};
+
+// The most the recordings' own noise may be, as the median over the pixels of |r_A - r_B|^2 / 4
+// over their paths' variance (divided by 0.455 as below), for the paths' variance to be taken as
+// what it is made of: 1 / (2 N) for N paths a pixel, 1/8 at the fewest (4). In the Cornell box the
+// recordings vary 4-20x more (light no recorded term carries).
+inline constexpr double kModelledRecordingNoise = 0.25;
+
+// kappa, over the pixels whose paths vary at least as much as the median pixel's, as the larger of
+// two readings, each a median over 0.455 (the median of a chi-square with one degree of freedom
+// over its mean):
+// - the median of r_A . r_B / variance. A ratio of sums would be the ratio at the few pixels whose
+//   paths vary most (a sub-pixel highlight's, whose noise kappa is for); a mean of ratios is ruled
+//   by pixels whose noise no recorded path carries (a silhouette's background, an image's
+//   fireflies). Biased low where the recordings' noise is not small against the image's: the
+//   product of two residuals whose shared part is small has its median near 0, not at its mean.
+// - where the recordings' noise is what the paths' variance says (kModelledRecordingNoise): the
+//   median of |r_A + r_B|^2 / 4 / variance (the image's noise and half the recordings') less that
+//   of |r_A - r_B|^2 / 4 / variance (half the recordings'; independent of the first for recordings
+//   alike), at its lower 2-standard-error end, so that a difference within its noise adds nothing.
+// On a point-lit sphere rendered with 256 independent samples a pixel (kappa 1/256 = 0.0039) the
+// first reads 0.0020-0.0025 in the last rounds, the second 0.0042-0.0047
+// (docs/design/fitter.md, "The residuals split").
+double noiseScale(const std::vector<PixelNoise>& pixels);
 
 // Per block, the natural parameters' standard errors at the flat natural coordinates `y` from the
 // image's modelled noise alone (least squares' sandwich over the pixels that see a material); 0
