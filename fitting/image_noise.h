@@ -44,7 +44,7 @@ inline constexpr double kModelledRecordingNoise = 0.25;
 //   of |r_A - r_B|^2 / 4 / variance (half the recordings'; independent of the first for recordings
 //   alike), at its lower 2-standard-error end, so that a difference within its noise adds nothing.
 // On a point-lit sphere rendered with 256 independent samples a pixel (kappa 1/256 = 0.0039) the
-// first reads 0.0020-0.0025 in the last rounds, the second 0.0042-0.0047
+// first reads 0.0020-0.0028 in the last rounds, the second 0.0042-0.0047
 // (docs/design/fitter.md, "The residuals split").
 double noiseScale(const std::vector<PixelNoise>& pixels);
 
