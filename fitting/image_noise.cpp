@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <utility>
 
 #include "standard_errors.h"
 
@@ -15,7 +16,7 @@ constexpr double kChiSquareMedian = 0.4549;
 
 struct NoiseSums {
     Eigen::MatrixXd gram;   // J^T J
-    Eigen::MatrixXd noise;  // J^T (path covariance) J
+    Eigen::MatrixXd noise;  // J^T diag(path variance) J
 
     NoiseSums& operator+=(const NoiseSums& other) {
         gram += other.gram;
@@ -42,22 +43,25 @@ Median medianOf(std::vector<double>& values) {
 
 }  // namespace
 
-double noiseScale(const std::vector<PixelNoise>& pixels) {
-    std::vector<double> variances;
-    for (const PixelNoise& p : pixels) variances.push_back(p.variance);
-    const auto middle = variances.begin() + std::ptrdiff_t(variances.size() / 2);
-    std::nth_element(variances.begin(), middle, variances.end());
-    const double least = variances.empty() ? 0.0 : *middle;
-    std::vector<double> cross, sum, difference;
-    for (const PixelNoise& p : pixels)
-        if (p.variance >= least && p.variance > 0) {
-            cross.push_back(p.cross / p.variance);
-            sum.push_back((p.cross + p.halfDifference) / p.variance);
-            difference.push_back(p.halfDifference / p.variance);
-        }
-    const double product = std::max(0.0, medianOf(cross).value / kChiSquareMedian);
-    const Median s = medianOf(sum), d = medianOf(difference);
+double noiseScale(std::vector<PixelNoise> pixels) {
+    // Pixels reordered, and each ratio's values held one at a time: the fit's state stays within
+    // its bytes a pixel (fit_memory_test).
+    const auto middle = pixels.begin() + std::ptrdiff_t(pixels.size() / 2);
+    std::nth_element(
+        pixels.begin(), middle, pixels.end(),
+        [](const PixelNoise& a, const PixelNoise& b) { return a.variance < b.variance; });
+    const double least = pixels.empty() ? 0.0 : middle->variance;
+    const auto medianOver = [&](auto ratio) {
+        std::vector<double> values;
+        for (const PixelNoise& p : pixels)
+            if (p.variance >= least && p.variance > 0) values.push_back(ratio(p) / p.variance);
+        return medianOf(values);
+    };
+    const double product = std::max(
+        0.0, medianOver([](const PixelNoise& p) { return p.cross; }).value / kChiSquareMedian);
+    const Median d = medianOver([](const PixelNoise& p) { return p.halfDifference; });
     if (!(d.value / kChiSquareMedian <= kModelledRecordingNoise)) return product;
+    const Median s = medianOver([](const PixelNoise& p) { return p.cross + p.halfDifference; });
     return std::max(product,
                     (s.value - d.value - 2 * std::hypot(s.error, d.error)) / kChiSquareMedian);
 }
@@ -77,13 +81,13 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
         [&](std::size_t i, NoiseSums& sum, typename Objective<P>::Scratch& scratch) {
             const UsedPixel& u = prep.pixels[i];
             std::array<Eigen::Vector3d, 2> r;
-            Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+            Eigen::Vector3d variance = Eigen::Vector3d::Zero();
             for (int k = 0; k < 2; ++k) {
                 r[k] = objective.residual(objective.recording(k, u.view), u, y.data(), scratch,
                                           &scratch.jacobians[k]);
-                covariance += 0.5 * objective.pathCovariance(k, u, y.data(), scratch);
+                variance += 0.5 * objective.pathVariance(k, u, y.data(), scratch);
             }
-            noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), covariance.trace()};
+            noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), variance.sum()};
             const std::span<const std::uint32_t> slots = prep.slotsOf(u);
             std::vector<Eigen::Index>& indices = scratch.indices;
             indices.clear();
@@ -94,9 +98,9 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                     0.5 * (scratch.jacobians[0][a] + scratch.jacobians[1][a]);
             }
             sum.gram(indices, indices) += j.transpose() * j;
-            sum.noise(indices, indices) += j.transpose() * covariance * j;
+            sum.noise(indices, indices) += j.transpose() * variance.asDiagonal() * j;
         });
-    return naturalStd<P>(sums.gram, noiseScale(noise) * sums.noise, held);
+    return naturalStd<P>(sums.gram, noiseScale(std::move(noise)) * sums.noise, held);
 }
 
 void applyImageNoise(MaterialFit& fit) {
