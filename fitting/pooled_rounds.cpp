@@ -74,12 +74,18 @@ PooledRounds<P> pooled(const PooledRounds<P>& pool, const PooledRounds<P>& round
     PooledRounds<P> sum = round;
     sum.pathFactor = pool.pathFactor + round.pathFactor;
     sum.rounds = pool.rounds + 1;
-    for (std::size_t m = 0; m < sum.imageNoise.size() && m < pool.imageNoise.size(); ++m) {
-        MaterialFit& most = sum.imageNoise[m];
-        const MaterialFit& other = pool.imageNoise[m];
-        most.kdImageStd = most.kdImageStd.cwiseMax(other.kdImageStd);
-        most.ksImageStd = most.ksImageStd.cwiseMax(other.ksImageStd);
-        most.logNImageStd = std::max(most.logNImageStd, other.logNImageStd);
+    // A round of far fewer paths than another read its image noise where its recordings barely
+    // resolved the estimate, and reads far more: the other's reading stands alone.
+    if (pool.imagePathFactor >= kImageNoisePathRatio * round.pathFactor) {
+        sum.imageNoise = pool.imageNoise;
+    } else if (round.pathFactor < kImageNoisePathRatio * pool.imagePathFactor) {
+        for (std::size_t m = 0; m < sum.imageNoise.size() && m < pool.imageNoise.size(); ++m) {
+            MaterialFit& most = sum.imageNoise[m];
+            const MaterialFit& other = pool.imageNoise[m];
+            most.kdImageStd = most.kdImageStd.cwiseMax(other.kdImageStd);
+            most.ksImageStd = most.ksImageStd.cwiseMax(other.ksImageStd);
+            most.logNImageStd = std::max(most.logNImageStd, other.logNImageStd);
+        }
     }
     if (pool.imagePathFactor > round.pathFactor) {
         sum.imageVariance = pool.imageVariance;

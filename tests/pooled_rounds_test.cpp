@@ -88,6 +88,30 @@ TEST(PooledRounds, WeighEachRoundByTheInverseOfItsRecordingsVariance) {
     EXPECT_NEAR(b.natural(0)[L::specular(2)], 0.2925, 1e-12);
 }
 
+// The image noise's standard error for ks of a pool of a round whose model gave `first`, at
+// `firstFactor` times the paths, joined by one that gave `second` at `secondFactor`.
+double pooledImageNoise(double first, double firstFactor, double second, double secondFactor) {
+    const ParameterState<P> params = stateAt(material(0.4, 0.3, 100));
+    const auto round = [&](double ksImage, double factor) {
+        RoundOutcome out = outcome(params, 0.01, 0.5);
+        out.materials[0].ksImageStd = Color3::Constant(ksImage);
+        return poolOfRound<P>(out, params, factor);
+    };
+    return pooled<P>(round(first, firstFactor), round(second, secondFactor))
+        .imageNoise[0]
+        .ksImageStd[0];
+}
+
+TEST(PooledRounds, TheImageNoiseIsTheLargestOfRoundsWithComparablePaths) {
+    // Within kImageNoisePathRatio of each other: the larger reading, whichever came first.
+    EXPECT_EQ(pooledImageNoise(0.002, 16, 0, 32), 0.002);
+    EXPECT_EQ(pooledImageNoise(0, 16, 0.002, 8), 0.002);
+    // A round of the first round's paths read its noise where its recordings barely resolved
+    // the estimate: one of 15 times as many stands alone, joining it or joined by it.
+    EXPECT_EQ(pooledImageNoise(0.01, 1, 0, 15), 0);
+    EXPECT_EQ(pooledImageNoise(0.001, 16, 0.01, 2), 0.001);
+}
+
 TEST(PooledRounds, AreNotPooledAcrossHeldParametersOrWithoutTheRecordingsShare) {
     ParameterState<P> a = stateAt(material(0.4, 0.3, 100)), b = stateAt(material(0.4, 0.3, 100));
     const PooledRounds<P> first = poolOfRound<P>(outcome(a, 0.01, 0.5), a, 1);
