@@ -16,7 +16,7 @@ constexpr double kChiSquareMedian = 0.4549;
 
 struct NoiseSums {
     Eigen::MatrixXd gram;   // J^T J
-    Eigen::MatrixXd noise;  // J^T diag(path variance) J
+    Eigen::MatrixXd noise;  // J^T (path covariance) J
 
     NoiseSums& operator+=(const NoiseSums& other) {
         gram += other.gram;
@@ -81,13 +81,13 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
         [&](std::size_t i, NoiseSums& sum, typename Objective<P>::Scratch& scratch) {
             const UsedPixel& u = prep.pixels[i];
             std::array<Eigen::Vector3d, 2> r;
-            Eigen::Vector3d variance = Eigen::Vector3d::Zero();
+            Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
             for (int k = 0; k < 2; ++k) {
                 r[k] = objective.residual(objective.recording(k, u.view), u, y.data(), scratch,
                                           &scratch.jacobians[k]);
-                variance += 0.5 * objective.pathVariance(k, u, y.data(), scratch);
+                covariance += 0.5 * objective.pathCovariance(k, u, y.data(), scratch);
             }
-            noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), variance.sum()};
+            noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), covariance.trace()};
             const std::span<const std::uint32_t> slots = prep.slotsOf(u);
             std::vector<Eigen::Index>& indices = scratch.indices;
             indices.clear();
@@ -98,7 +98,7 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                     0.5 * (scratch.jacobians[0][a] + scratch.jacobians[1][a]);
             }
             sum.gram(indices, indices) += j.transpose() * j;
-            sum.noise(indices, indices) += j.transpose() * variance.asDiagonal() * j;
+            sum.noise(indices, indices) += j.transpose() * covariance * j;
         });
     return naturalStd<P>(sums.gram, noiseScale(std::move(noise)) * sums.noise, held);
 }

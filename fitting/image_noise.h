@@ -1,9 +1,9 @@
 // The standard errors the observed image's own noise gives the estimate, from a model of that
-// noise: in each pixel, kappa times the variance of one of the fitter's paths there
-// (replayPathVariance), kappa from the cross products of the two recordings' residuals (their
-// expectation is the image's variance: the recordings' noise is independent of each other and of
-// the image's). The sandwich takes a pixel's noise from its own residual, one draw: where one
-// pixel holds a parameter (a highlight smaller than a pixel) it cannot see that pixel's noise
+// noise: in each pixel, kappa times the covariance over channels of one of the fitter's paths
+// there (replayPathCovariance), kappa from the cross products of the two recordings' residuals
+// (their expectation is the image's variance: the recordings' noise is independent of each other
+// and of the image's). The sandwich takes a pixel's noise from its own residual, one draw: where
+// one pixel holds a parameter (a highlight smaller than a pixel) it cannot see that pixel's noise
 // (docs/design/fitter.md, "A parameter held by one noisy pixel"). The model is an image rendered
 // with independent samples; stratified ones (Sobol points) shrink some pixels' variance far more
 // than others': wide at the Cornell box's highlight, narrow at a point-lit sphere's, whose smooth
@@ -19,7 +19,8 @@
 namespace phongfit {
 
 // What kappa is read from, in one pixel that sees a material: r_A . r_B, |r_A - r_B|^2 / 4 (the
-// two recordings' residuals, over channels) and the variance of one of its paths (over channels).
+// two recordings' residuals, over channels) and the variance of one of its paths (the trace of
+// their covariance).
 struct PixelNoise {
     double cross = 0, halfDifference = 0, variance = 0;
 };

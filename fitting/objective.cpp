@@ -104,13 +104,13 @@ Eigen::Vector3d Objective<P>::residual(const PathSet& paths, const UsedPixel& u,
 }
 
 template <int P>
-Eigen::Vector3d Objective<P>::pathVariance(int k, const UsedPixel& u, const double* y,
-                                           Scratch& scratch) const {
+Eigen::Matrix3d Objective<P>::pathCovariance(int k, const UsedPixel& u, const double* y,
+                                             Scratch& scratch) const {
     for (std::uint32_t m : materialSlots(u))
         scratch.plain[m] = naturalToPhong<P>(y + std::size_t(m) * P);
     const double scale = weight(u) * exposure_.value<P>(y);
-    return (scale * scale * replayPathVariance(recording(k, u.view), u.pixel, scratch.plain.data()))
-        .matrix();
+    return scale * scale *
+           replayPathCovariance(recording(k, u.view), u.pixel, scratch.plain.data());
 }
 
 namespace {

@@ -81,10 +81,10 @@ public:
     bool exact() const { return recordings_[0] == recordings_[1]; }
     // Recording k (0 or 1) of a view.
     const PathSet& recording(int k, std::uint32_t view) const { return (*recordings_[k])[view]; }
-    // The variance of one path of pixel u in recording k at y (replayPathVariance), in the
-    // weighted residual's units: times (weight * exposure)^2.
-    Eigen::Vector3d pathVariance(int k, const UsedPixel& u, const double* y,
-                                 Scratch& scratch) const;
+    // The covariance over channels of one path of pixel u in recording k at y
+    // (replayPathCovariance), in the weighted residual's units: times (weight * exposure)^2.
+    Eigen::Matrix3d pathCovariance(int k, const UsedPixel& u, const double* y,
+                                   Scratch& scratch) const;
 
     // Sum over the first `count` used pixels of body(pixel index, sum, scratch).
     template <typename Value, typename Body>

@@ -70,25 +70,31 @@ Color<T> replayPixel(const PathSet& paths, std::size_t pixel, const PhongParams<
                        });
 }
 
-// The variance of one path of the pixel at theta, each term taken as a path of its own (terms of
-// one camera path also covary; that is left out): N sum t^2 - (sum t)^2 over its terms t, each of
-// which holds 1 / N of its path (its group's weight undone), N the pixel's paths. An image
-// rendered with independent samples varies by this over its paths per pixel there.
-inline Color3 replayPathVariance(const PathSet& paths, std::size_t pixel,
-                                 const PhongMaterial* theta) {
-    Color3 sum = Color3::Zero(), squares = Color3::Zero();
+// The covariance over channels of one path of the pixel at theta, each term taken as a path of
+// its own (terms of one camera path also covary; that is left out): N sum t t^T - (sum t)(sum t)^T
+// over its terms t, each of which holds 1 / N of its path (its group's weight undone), N the
+// pixel's paths. An image rendered with independent samples varies by this over its paths per
+// pixel there. One path carries all three channels, so their noise covaries: under white light on
+// a grey material the channels vary as one.
+inline Eigen::Matrix3d replayPathCovariance(const PathSet& paths, std::size_t pixel,
+                                            const PhongMaterial* theta) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d squares = Eigen::Matrix3d::Zero();
     const std::uint32_t begin = paths.pixelStart[pixel], end = paths.pixelStart[pixel + 1];
     const PathGroups groups = paths.groups.empty() ? PathGroups{} : paths.groups[pixel];
     for (std::uint32_t t = begin; t < end; ++t) {
         const double weight =
             t - begin < groups.ringedTerms ? groups.ringedScale : groups.sampledScale;
-        const Color3 x = termBrdfs(paths, paths.terms[t], theta) *
-                         paths.terms[t].constant.cast<double>() / weight;
+        const Eigen::Vector3d x = (termBrdfs(paths, paths.terms[t], theta) *
+                                   paths.terms[t].constant.cast<double>() / weight)
+                                      .matrix();
         sum += x;
-        squares += x * x;
+        squares += x * x.transpose();
     }
     const double n = paths.pathsAt(pixel);
-    return (n * squares - sum * sum).max(0.0);
+    Eigen::Matrix3d covariance = n * squares - sum * sum.transpose();
+    covariance.diagonal() = covariance.diagonal().cwiseMax(0.0);
+    return covariance;
 }
 
 }  // namespace phongfit

@@ -31,7 +31,7 @@ std::vector<RecordRun> recordRuns(const Terms& terms) {
 }
 
 // The least weight either group of a pixel's paths gets (PathGroups): every path keeps a share,
-// so its weight can be undone (replayPathVariance).
+// so its weight can be undone (replayPathCovariance).
 constexpr double kLeastGroupWeight = 1e-3;
 
 // How far the neighbours a pixel's group variances are pooled over may reach: 1 (3 x 3), then 2.

@@ -118,47 +118,84 @@ TEST(Replay, EqualsDirectEvaluationOfTheModel) {
     EXPECT_GT(withTerms, 40);
 }
 
-// Each term taken as one of the pixel's N paths (spp, or pixelPaths where set): N sum t^2 - (sum
-// t)^2, at least 0, with t the terms' values at theta (their constants hold 1 / N).
-TEST(Replay, PathVarianceIsTheSpreadOfThePixelsTerms) {
+// Each term taken as one of the pixel's N paths (spp, or pixelPaths where set): N sum t t^T -
+// (sum t)(sum t)^T over channels, its diagonal at least 0, with t the terms' values at theta
+// (their constants hold 1 / N).
+TEST(Replay, PathCovarianceIsTheSpreadOfThePixelsTerms) {
     RandomPaths r(60, 2);
     const std::vector<PhongMaterial> theta = twoMaterials();
-    const auto expected = [&](int p, double paths) -> Color3 {
-        Color3 sum = Color3::Zero(), squares = Color3::Zero();
+    const auto expected = [&](int p, double paths) -> Eigen::Matrix3d {
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        Eigen::Matrix3d squares = Eigen::Matrix3d::Zero();
         for (const DirectTerm& t : r.direct[p]) {
             Color3 f = Color3::Ones();
             for (const DirectVertex& v : t.vertices) f *= phongEval(theta[v.slot], v.wi, v.wo);
-            sum += t.constant * f;
-            squares += (t.constant * f).square();
+            const Eigen::Vector3d x = (t.constant * f).matrix();
+            sum += x;
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b) squares(a, b) += x[a] * x[b];
         }
-        return (paths * squares - sum.square()).max(0.0);
+        Eigen::Matrix3d c = paths * squares - sum * sum.transpose();
+        for (int a = 0; a < 3; ++a) c(a, a) = std::max(c(a, a), 0.0);
+        return c;
     };
-    int spread = 0;
+    int spread = 0, covarying = 0;
     for (int p = 0; p < r.paths.width; ++p) {
-        const Color3 variance = replayPathVariance(r.paths, p, theta.data());
-        const Color3 truth = expected(p, r.paths.spp);
-        spread += (truth > 0).any();
-        for (int c = 0; c < 3; ++c)
-            EXPECT_NEAR(variance[c], truth[c], 1e-4 * (1 + truth[c])) << p << " " << c;
+        const Eigen::Matrix3d covariance = replayPathCovariance(r.paths, p, theta.data());
+        const Eigen::Matrix3d truth = expected(p, r.paths.spp);
+        spread += (truth.diagonal().array() > 0).any();
+        covarying += std::abs(truth(0, 1)) > 1e-3 * truth(0, 0);
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b)
+                EXPECT_NEAR(covariance(a, b), truth(a, b), 1e-4 * (1 + std::abs(truth(a, b))))
+                    << p << " " << a << b;
     }
     EXPECT_GT(spread, 30);
+    EXPECT_GT(covarying, 30);
     // Per-pixel path counts where a recording spent more paths in some pixels; a pixel with no
     // term has no spread.
     for (int p = 0; p < r.paths.width; ++p) r.paths.pixelPaths.push_back(std::uint32_t(4 + p % 7));
     for (int p = 0; p < r.paths.width; ++p) {
-        const Color3 variance = replayPathVariance(r.paths, p, theta.data());
-        const Color3 truth = expected(p, 4 + p % 7);
-        for (int c = 0; c < 3; ++c)
-            EXPECT_NEAR(variance[c], truth[c], 1e-4 * (1 + truth[c])) << p << " " << c;
+        const Eigen::Matrix3d covariance = replayPathCovariance(r.paths, p, theta.data());
+        const Eigen::Matrix3d truth = expected(p, 4 + p % 7);
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b)
+                EXPECT_NEAR(covariance(a, b), truth(a, b), 1e-4 * (1 + std::abs(truth(a, b))))
+                    << p << " " << a << b;
         if (r.direct[p].empty()) {
-            EXPECT_TRUE((variance == 0).all()) << p;
+            EXPECT_TRUE(covariance.isZero(0)) << p;
         }
     }
 }
 
+// Under white light on a grey material every term is grey: the channels vary as one, so the
+// covariance is its variance in every entry (the image-noise model's sum over channels counts
+// them together, not as three independent draws).
+TEST(Replay, PathCovarianceOfGreyTermsIsOneVariance) {
+    RandomPaths r(60, 4);
+    std::vector<PhongMaterial> theta = twoMaterials();
+    for (PhongMaterial& m : theta) {
+        m.kd = Color3::Constant(m.kd.mean());
+        m.ks = Color3::Constant(m.ks.mean());
+    }
+    for (std::size_t t = 0; t < r.paths.terms.size(); ++t)
+        r.paths.terms[t].constant =
+            decltype(r.paths.terms[t].constant)::Constant(r.paths.terms[t].constant.mean());
+    int spread = 0;
+    for (int p = 0; p < r.paths.width; ++p) {
+        const Eigen::Matrix3d covariance = replayPathCovariance(r.paths, p, theta.data());
+        spread += covariance(0, 0) > 0;
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b)
+                EXPECT_NEAR(covariance(a, b), covariance(0, 0), 1e-9 * (1 + covariance(0, 0)))
+                    << p << " " << a << b;
+    }
+    EXPECT_GT(spread, 30);
+}
+
 // A pixel whose ringed and sampled paths are weighted (PathGroups) has its terms scaled by their
-// group's weight; the path variance undoes that, so it is the plain recording's.
-TEST(Replay, PathVarianceUndoesTheWeightsOfRingedAndSampledPaths) {
+// group's weight; the path covariance undoes that, so it is the plain recording's.
+TEST(Replay, PathCovarianceUndoesTheWeightsOfRingedAndSampledPaths) {
     const RandomPaths r(60, 3);
     const std::vector<PhongMaterial> theta = twoMaterials();
     PathSet weighted = r.paths;
@@ -175,11 +212,14 @@ TEST(Replay, PathVarianceUndoesTheWeightsOfRingedAndSampledPaths) {
     }
     int spread = 0;
     for (int p = 0; p < r.paths.width; ++p) {
-        const Color3 plain = replayPathVariance(r.paths, std::size_t(p), theta.data());
-        const Color3 variance = replayPathVariance(weighted, std::size_t(p), theta.data());
-        spread += (plain > 0).any();
-        for (int c = 0; c < 3; ++c)
-            EXPECT_NEAR(variance[c], plain[c], 1e-5 * (1 + plain[c])) << p << " " << c;
+        const Eigen::Matrix3d plain = replayPathCovariance(r.paths, std::size_t(p), theta.data());
+        const Eigen::Matrix3d covariance =
+            replayPathCovariance(weighted, std::size_t(p), theta.data());
+        spread += (plain.diagonal().array() > 0).any();
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b)
+                EXPECT_NEAR(covariance(a, b), plain(a, b), 1e-5 * (1 + std::abs(plain(a, b))))
+                    << p << " " << a << b;
     }
     EXPECT_GT(spread, 30);
 }
