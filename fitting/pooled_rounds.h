@@ -37,9 +37,10 @@ struct PooledRounds {
     int rounds = 0;
 };
 
-// Rounds of fewer paths than this ratio to the pool's most leave the pool's image noise out: at a
-// point-lit sphere's n 300 a round of the first round's paths read n +- 2.1 where one of 15 times
-// as many read 0 (its seeds' estimates scatter by 0.04).
+// Where a round joins a pool and one of the two has this many times the other's paths or more,
+// the image noise is that one's alone: at a point-lit sphere's n 300 a round of the first round's
+// paths read n +- 2.1 where one of 15 times as many read 0 (its seeds' estimates scatter by 0.04).
+// A pool's reading counts as its round's of the most paths.
 inline constexpr double kImageNoisePathRatio = 4;
 
 // A round's solution `out`, at `params`' point and recorded at `pathFactor`, as a pool of one. Its
