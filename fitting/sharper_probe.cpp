@@ -79,9 +79,11 @@ void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<Materia
         if (!probed(c) || p.isUnconstrained("n")) continue;
         // One that cannot tell them apart rules out nothing up to its start, nor within 3 of its
         // standard errors of where it went (beyond its start, where the lobe may be sharper yet).
+        // Nor does one that went past the converged n to a broader lobe: that is the pull of
+        // sparse paths (its half paths), not the images ruling its start out.
         const double around = std::abs(p.n - c.n) + 3 * p.nStd;
-        const double reach =
-            tellsApart(c, p) ? around : std::max(around, c.n * (probeFactor(c) - 1));
+        const bool startStands = !tellsApart(c, p) || p.n < c.n;
+        const double reach = startStands ? std::max(around, c.n * (probeFactor(c) - 1)) : around;
         c.nStd = std::max(c.nStd, reach);
     }
 }

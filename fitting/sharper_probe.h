@@ -55,8 +55,8 @@ bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<Mate
 
 // For a probe that did not come back and no round after it: each probed lobe's n standard error
 // in `converged` raised to reach every n the probe did not rule out: its n and 3 of its standard
-// errors beyond, and where it cannot tell the converged n from its start (as probeReturned) at
-// least the start.
+// errors beyond; at least the start where it cannot tell the converged n from its start (as
+// probeReturned) or went past the converged n to a broader lobe.
 void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
 // Each free lobe in `materials` too near kMaxExponent to be probed (n times kProbeFactor above it):

@@ -101,8 +101,9 @@ TEST(SharperProbe, ASecondProbeRecordsThePathsToTellARoughLobeFromItsStart) {
 // 9000; one that cannot tell 1500 from its start, 6000, widens it to reach the start, and as far
 // as 3 of its own standard errors beyond where it went (the Cornell box under the 40-degree light,
 // n 30000, ks 0.05: converged at 2200 +- 529, the probe from 8800 went to 12777 +- 10740, and the
-// start alone, 2200 +- 6599, left the truth 4.2 of those away); a probe that held n, or a lobe not
-// probed, leaves it.
+// start alone, 2200 +- 6599, left the truth 4.2 of those away); one that went past the converged
+// n to a broader lobe widens it to reach the start too; a probe that held n, or a lobe not probed,
+// leaves it.
 TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
     MaterialFit held = lobe(100, 0);
     held.unconstrained = {"n"};
@@ -117,6 +118,11 @@ TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
     widenToProbe(cornell, {lobe(12777, 10740), lobe(2300, 2000)});
     EXPECT_DOUBLE_EQ(cornell[0].nStd, 12777 - 2200 + 3 * 10740);
     EXPECT_DOUBLE_EQ(cornell[1].nStd, 2200 * (kProbeFactor - 1));  // the start reaches further
+    // The quad light at n 1e6: the probe from 985304 told 246326 +- 99744 from its start but went
+    // past it, to 53294 +- 13746; its start stands.
+    std::vector<MaterialFit> quad = {lobe(246326, 99744)};
+    widenToProbe(quad, {lobe(53294, 13746)});
+    EXPECT_DOUBLE_EQ(quad[0].nStd, 246326 * (kProbeFactor - 1));
     EXPECT_EQ(converged[2].nStd, 100);
     EXPECT_EQ(converged[3].nStd, 0);
     EXPECT_EQ(converged[0].n, 1500);
