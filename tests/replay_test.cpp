@@ -118,6 +118,15 @@ TEST(Replay, EqualsDirectEvaluationOfTheModel) {
     EXPECT_GT(withTerms, 40);
 }
 
+// Every entry of a pixel's 3 x 3 `actual` within `relative` (1 + |entry|) of `expected`'s.
+void expectNear(const Eigen::Matrix3d& actual, const Eigen::Matrix3d& expected, double relative,
+                int pixel) {
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+            EXPECT_NEAR(actual(a, b), expected(a, b), relative * (1 + std::abs(expected(a, b))))
+                << pixel << " " << a << b;
+}
+
 // Each term taken as one of the pixel's N paths (spp, or pixelPaths where set): N sum t t^T -
 // (sum t)(sum t)^T over channels, its diagonal at least 0, with t the terms' values at theta
 // (their constants hold 1 / N).
@@ -145,10 +154,7 @@ TEST(Replay, PathCovarianceIsTheSpreadOfThePixelsTerms) {
         const Eigen::Matrix3d truth = expected(p, r.paths.spp);
         spread += (truth.diagonal().array() > 0).any();
         covarying += std::abs(truth(0, 1)) > 1e-3 * truth(0, 0);
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b)
-                EXPECT_NEAR(covariance(a, b), truth(a, b), 1e-4 * (1 + std::abs(truth(a, b))))
-                    << p << " " << a << b;
+        expectNear(covariance, truth, 1e-4, p);
     }
     EXPECT_GT(spread, 30);
     EXPECT_GT(covarying, 30);
@@ -158,10 +164,7 @@ TEST(Replay, PathCovarianceIsTheSpreadOfThePixelsTerms) {
     for (int p = 0; p < r.paths.width; ++p) {
         const Eigen::Matrix3d covariance = replayPathCovariance(r.paths, p, theta.data());
         const Eigen::Matrix3d truth = expected(p, 4 + p % 7);
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b)
-                EXPECT_NEAR(covariance(a, b), truth(a, b), 1e-4 * (1 + std::abs(truth(a, b))))
-                    << p << " " << a << b;
+        expectNear(covariance, truth, 1e-4, p);
         if (r.direct[p].empty()) {
             EXPECT_TRUE(covariance.isZero(0)) << p;
         }
@@ -185,10 +188,7 @@ TEST(Replay, PathCovarianceOfGreyTermsIsOneVariance) {
     for (int p = 0; p < r.paths.width; ++p) {
         const Eigen::Matrix3d covariance = replayPathCovariance(r.paths, p, theta.data());
         spread += covariance(0, 0) > 0;
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b)
-                EXPECT_NEAR(covariance(a, b), covariance(0, 0), 1e-9 * (1 + covariance(0, 0)))
-                    << p << " " << a << b;
+        expectNear(covariance, Eigen::Matrix3d::Constant(covariance(0, 0)), 1e-9, p);
     }
     EXPECT_GT(spread, 30);
 }
@@ -216,10 +216,7 @@ TEST(Replay, PathCovarianceUndoesTheWeightsOfRingedAndSampledPaths) {
         const Eigen::Matrix3d covariance =
             replayPathCovariance(weighted, std::size_t(p), theta.data());
         spread += (plain.diagonal().array() > 0).any();
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b)
-                EXPECT_NEAR(covariance(a, b), plain(a, b), 1e-5 * (1 + std::abs(plain(a, b))))
-                    << p << " " << a << b;
+        expectNear(covariance, plain, 1e-5, p);
     }
     EXPECT_GT(spread, 30);
 }
