@@ -80,10 +80,15 @@ void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<Materia
         // One that cannot tell them apart rules out nothing up to its start, nor within 3 of its
         // standard errors of where it went (beyond its start, where the lobe may be sharper yet).
         // Nor does one that went past the converged n to a broader lobe: that is the pull of
-        // sparse paths (its half paths), not the images ruling its start out.
-        const double around = std::abs(p.n - c.n) + 3 * p.nStd;
-        const bool startStands = !tellsApart(c, p) || p.n < c.n;
-        const double reach = startStands ? std::max(around, c.n * (probeFactor(c) - 1)) : around;
+        // sparse paths (its half paths), not the images ruling its start out. One that told them
+        // apart and went on sharper than its start saw the images ask for a lobe sharper than any
+        // recording: none bounds it.
+        const double start = c.n * probeFactor(c);
+        double reach = std::abs(p.n - c.n) + 3 * p.nStd;
+        if (!tellsApart(c, p) || p.n < c.n)
+            reach = std::max(reach, start - c.n);
+        else if (p.n >= start)
+            reach = std::max(reach, kMaxExponent - c.n);
         c.nStd = std::max(c.nStd, reach);
     }
 }

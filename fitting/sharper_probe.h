@@ -56,7 +56,8 @@ bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<Mate
 // For a probe that did not come back and no round after it: each probed lobe's n standard error
 // in `converged` raised to reach every n the probe did not rule out: its n and 3 of its standard
 // errors beyond; at least the start where it cannot tell the converged n from its start (as
-// probeReturned) or went past the converged n to a broader lobe.
+// probeReturned) or went past the converged n to a broader lobe; the bound where it told them
+// apart and went on sharper than its start.
 void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
 // Each free lobe in `materials` too near kMaxExponent to be probed (n times kProbeFactor above it):

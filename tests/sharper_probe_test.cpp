@@ -97,13 +97,13 @@ TEST(SharperProbe, ASecondProbeRecordsThePathsToTellARoughLobeFromItsStart) {
     EXPECT_FALSE(probeTold({lobe(1000, 10), weak}, {lobe(4000, 10), lobe(6.7, 4.4)}));
 }
 
-// A probe left in the last round at n 6000 +- 1000 widens the converged n 1500 +- 100 to reach
-// 9000; one that cannot tell 1500 from its start, 6000, widens it to reach the start, and as far
+// A probe from 6000 left in the last round at n 5000 +- 1000 widens the converged n 1500 +- 100
+// to reach 8000; one that cannot tell 1500 from its start widens it to reach the start, and as far
 // as 3 of its own standard errors beyond where it went (the Cornell box under the 40-degree light,
 // n 30000, ks 0.05: converged at 2200 +- 529, the probe from 8800 went to 12777 +- 10740, and the
 // start alone, 2200 +- 6599, left the truth 4.2 of those away); one that went past the converged
-// n to a broader lobe widens it to reach the start too; a probe that held n, or a lobe not probed,
-// leaves it.
+// n to a broader lobe widens it to reach the start too; one that told them apart and went on
+// sharper than its start, to the bound; a probe that held n, or a lobe not probed, leaves it.
 TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
     MaterialFit held = lobe(100, 0);
     held.unconstrained = {"n"};
@@ -111,8 +111,8 @@ TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
     notProbed.unconstrained = {"n"};
     std::vector<MaterialFit> converged = {lobe(1500, 100), lobe(1500, 100), lobe(1500, 100),
                                           notProbed};
-    widenToProbe(converged, {lobe(6000, 1000), lobe(6000, 6000), held, lobe(6000, 1000)});
-    EXPECT_DOUBLE_EQ(converged[0].nStd, 6000 - 1500 + 3 * 1000);
+    widenToProbe(converged, {lobe(5000, 1000), lobe(6000, 6000), held, lobe(6000, 1000)});
+    EXPECT_DOUBLE_EQ(converged[0].nStd, 5000 - 1500 + 3 * 1000);
     EXPECT_DOUBLE_EQ(converged[1].nStd, 6000 - 1500 + 3 * 6000);
     std::vector<MaterialFit> cornell = {lobe(2200, 529), lobe(2200, 529)};
     widenToProbe(cornell, {lobe(12777, 10740), lobe(2300, 2000)});
@@ -123,6 +123,12 @@ TEST(SharperProbe, WidensTheConvergedExponentToWhatTheProbeDidNotRuleOut) {
     std::vector<MaterialFit> quad = {lobe(246326, 99744)};
     widenToProbe(quad, {lobe(53294, 13746)});
     EXPECT_DOUBLE_EQ(quad[0].nStd, 246326 * (kProbeFactor - 1));
+    // A Cornell box under a 15-degree light, n 46924: converged at 743 +- 558, the probe from
+    // 7080 went on to 7743 +- 1163; and one that stayed at its start.
+    std::vector<MaterialFit> sharper = {lobe(743, 558), lobe(1500, 100)};
+    widenToProbe(sharper, {lobe(7743, 1163), lobe(6000, 1000)});
+    EXPECT_DOUBLE_EQ(sharper[0].nStd, kMaxExponent - 743);
+    EXPECT_DOUBLE_EQ(sharper[1].nStd, kMaxExponent - 1500);
     EXPECT_EQ(converged[2].nStd, 100);
     EXPECT_EQ(converged[3].nStd, 0);
     EXPECT_EQ(converged[0].n, 1500);
