@@ -14,6 +14,9 @@ namespace {
 // Four independent estimates' first move is that far out 1.2% of the time (simulated, 2e6 draws).
 constexpr double kTravelRatio = 8;
 
+// The factor by which a climb of n that does not slow must have gone for its end to be left open.
+constexpr double kUnendedClimb = 2;
+
 // sqrt(mean squared successive difference / 2) of `values`, made unbiased for their few degrees
 // of freedom. A full window whose first move is travel (kTravelRatio) leaves its first value out.
 double scatterOf(std::vector<double> values) {
@@ -84,22 +87,34 @@ void widenToRoundScatter(FitResult& result) {
 
 namespace {
 
-// How far the estimates may still go: over the last run of moves in the last move's direction,
-// whose moves shrink by rho a round (geometric mean), the rest of a geometric series,
+// The last run of moves in the last move's direction: the last move, the run's moves and travel,
+// and rho, by how much its moves shrink a round (geometric mean; 0 for a run of one move).
+struct Run {
+    double last = 0, travel = 0, rho = 0;
+    std::size_t moves = 0;
+};
+
+Run lastRun(const std::vector<double>& estimates) {
+    if (estimates.size() < 2) return {};
+    std::size_t k = estimates.size() - 2;
+    Run run;
+    run.last = estimates.back() - estimates[k];
+    while (k > 0 && (estimates[k] - estimates[k - 1]) * run.last > 0) --k;
+    run.travel = std::abs(estimates.back() - estimates[k]);
+    run.moves = estimates.size() - 1 - k;
+    if (run.moves >= 2)
+        run.rho = std::pow(std::abs(run.last / (estimates[k + 1] - estimates[k])),
+                           1.0 / double(run.moves - 1));
+    return run;
+}
+
+// How far the estimates may still go: the rest of the run's geometric series,
 // last * rho / (1 - rho), at most the run's travel (all of it where the moves do not shrink), and
 // at least the last move.
-double drift(const std::vector<double>& estimates) {
-    if (estimates.size() < 2) return 0;
-    std::size_t k = estimates.size() - 2;
-    const double last = estimates.back() - estimates[k];
-    while (k > 0 && (estimates[k] - estimates[k - 1]) * last > 0) --k;
-    const double travel = std::abs(estimates.back() - estimates[k]);
-    const std::size_t moves = estimates.size() - 1 - k;
-    if (moves < 2) return std::abs(last);
-    const double rho =
-        std::pow(std::abs(last / (estimates[k + 1] - estimates[k])), 1.0 / double(moves - 1));
-    if (rho >= 1) return travel;
-    return std::max(std::abs(last), std::min(std::abs(last) * rho / (1 - rho), travel));
+double drift(const Run& run) {
+    if (run.rho >= 1) return run.travel;
+    return std::max(std::abs(run.last),
+                    std::min(std::abs(run.last) * run.rho / (1 - run.rho), run.travel));
 }
 
 }  // namespace
@@ -116,7 +131,7 @@ void widenToDrift(FitResult& result) {
                     estimates.push_back(value(r.materials[s]));
             return estimates;
         };
-        const auto along = [&](auto value) { return drift(estimatesOf(value)); };
+        const auto along = [&](auto value) { return drift(lastRun(estimatesOf(value))); };
         MaterialFit& m = result.materials[s];
         for (int c = 0; c < 3; ++c) {
             if (m.kdStd[c] > 0)
@@ -128,13 +143,17 @@ void widenToDrift(FitResult& result) {
         }
         if (m.nStd > 0) {
             // n climbs by factors: its drift is judged in log n too, and the farther reach counts
-            // (on the side it moved to, within n's range).
-            const std::vector<double> logN =
-                estimatesOf([](const MaterialFit& f) { return std::log(f.n); });
-            const double d = drift(logN);
-            const double reach = logN.size() >= 2 && logN.back() > logN[logN.size() - 2]
-                                     ? std::min(m.n * std::expm1(d), kMaxExponent - m.n)
-                                     : -m.n * std::expm1(-d);
+            // (on the side it moved to, within n's range). A climb that at least doubled n and
+            // does not slow has shown no end: recordings are blind to lobes sharper than theirs
+            // (sharper_probe.h), so only the bound ends it.
+            const Run run =
+                lastRun(estimatesOf([](const MaterialFit& f) { return std::log(f.n); }));
+            const bool unended =
+                run.moves >= 2 && run.rho >= 1 && run.travel >= std::log(kUnendedClimb);
+            const double reach = run.last <= 0 ? -m.n * std::expm1(-drift(run))
+                                 : unended
+                                     ? kMaxExponent - m.n
+                                     : std::min(m.n * std::expm1(drift(run)), kMaxExponent - m.n);
             m.nStd = std::max({m.nStd, along([](const MaterialFit& f) { return f.n; }), reach});
         }
     }

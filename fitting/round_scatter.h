@@ -34,7 +34,8 @@ void widenToRoundScatter(FitResult& result);
 // still go, judged from the last rounds that moved it the same way (sharper probes left out): the
 // rest of a geometric series of their moves, the whole way they went where the moves do not
 // shrink, at least the last move. n's drift is the farther of that in n and in log n (a climb's
-// moves can shrink in one and not the other), within n's range.
+// moves can shrink in one and not the other), within n's range; the bound where a climb that at
+// least doubled n does not slow in log n.
 void widenToDrift(FitResult& result);
 
 }  // namespace phongfit
