@@ -6,24 +6,26 @@
 #include <filesystem>
 #include <fstream>
 #include <pugixml.hpp>
+#include <set>
 #include <sstream>
 #include <vector>
 
 #include "atomic_file.h"
 #include "error.h"
+#include "scene_xml.h"
 
 namespace phongfit {
 namespace {
 
 namespace fs = std::filesystem;
+using scene_xml::isIdentifier;
+using scene_xml::isSpace;
 
 // A replacement of text[begin, end).
 struct Splice {
     std::size_t begin, end;
     std::string text;
 };
-
-bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
 
 // Where the value of attribute `name` sits in the start tag whose element name begins at `offset`
 // (pugixml's offset_debug), in a text pugixml accepted as well-formed, with that attribute:
@@ -61,22 +63,34 @@ std::string escapeXml(const std::string& s) {
     return out;
 }
 
-// Relative mesh file names resolve against the scene's directory (scene_parser.h).
-void meshPathSplices(const std::string& text, pugi::xml_node node, const fs::path& fromDir,
-                     const fs::path& toDir, std::vector<Splice>& splices) {
-    for (const pugi::xml_node shape : node.children("shape")) {
-        if (std::string_view(shape.attribute("type").value()) == "obj")
-            for (const pugi::xml_node s : shape.children("string")) {
-                const fs::path file = s.attribute("value").value();
-                if (std::string_view(s.attribute("name").value()) != "filename" ||
-                    !s.attribute("value") || file.is_absolute() ||
-                    file.string().find('$') != std::string::npos)
-                    continue;
-                const auto [begin, end] = attributeValue(text, s.offset_debug(), "value");
-                splices.push_back(
-                    {begin, end, escapeXml(fs::relative(fromDir / file, toDir).generic_string())});
+// A relative file name as seen from `toDir` instead of `fromDir`; empty where it needs no
+// rewriting (absolute, or with a variable in it).
+std::string movedPath(std::string_view file, const fs::path& fromDir, const fs::path& toDir) {
+    const fs::path path(file);
+    if (file.empty() || path.is_absolute() || file.find('$') != std::string_view::npos) return {};
+    return fs::relative(fromDir / path, toDir).generic_string();
+}
+
+// Relative file names (meshes, environment maps) resolve against the scene's directory
+// (scene_parser.h), so the baked scene, in another folder, needs them rewritten: `filename`
+// strings written out are spliced here; those given by a default ("$name") are collected in
+// `fromDefaults`, whose values are rewritten where the defaults are.
+void filePathSplices(const std::string& text, pugi::xml_node node, const fs::path& fromDir,
+                     const fs::path& toDir, std::vector<Splice>& splices,
+                     std::set<std::string>& fromDefaults) {
+    for (const pugi::xml_node child : node.children()) {
+        const std::string_view value = child.attribute("value").value();
+        if (std::string_view(child.name()) == "string" &&
+            std::string_view(child.attribute("name").value()) == "filename" &&
+            child.attribute("value")) {
+            if (value.size() > 1 && value[0] == '$' && isIdentifier(value.substr(1))) {
+                fromDefaults.insert(std::string(value.substr(1)));
+            } else if (const std::string moved = movedPath(value, fromDir, toDir); !moved.empty()) {
+                const auto [begin, end] = attributeValue(text, child.offset_debug(), "value");
+                splices.push_back({begin, end, escapeXml(moved)});
             }
-        meshPathSplices(text, shape, fromDir, toDir, splices);
+        }
+        filePathSplices(text, child, fromDir, toDir, splices, fromDefaults);
     }
 }
 
@@ -100,16 +114,22 @@ std::set<std::string> bakeSceneDefaults(const std::string& inPath,
 
     // Edits in place keep everything else byte for byte: layout, comments, quoting.
     std::vector<Splice> splices;
-    std::set<std::string> replaced;
+    std::set<std::string> replaced, fileDefaults;
+    const fs::path fromDir = fs::absolute(inPath).parent_path(),
+                   toDir = fs::absolute(outPath).parent_path();
+    filePathSplices(text, root, fromDir, toDir, splices, fileDefaults);
     for (const pugi::xml_node d : root.children("default")) {
-        const auto it = values.find(d.attribute("name").value());
-        if (it == values.end() || !d.attribute("value")) continue;
+        const std::string name = d.attribute("name").value();
+        const auto it = values.find(name);
+        if (!d.attribute("value")) continue;
+        const std::string value = it == values.end() ? d.attribute("value").value() : it->second;
+        const std::string moved =
+            fileDefaults.count(name) ? movedPath(value, fromDir, toDir) : std::string();
+        if (it == values.end() && moved.empty()) continue;
         const auto [begin, end] = attributeValue(text, d.offset_debug(), "value");
-        splices.push_back({begin, end, escapeXml(it->second)});
-        replaced.insert(it->first);
+        splices.push_back({begin, end, escapeXml(moved.empty() ? value : moved)});
+        if (it != values.end()) replaced.insert(name);
     }
-    meshPathSplices(text, root, fs::absolute(inPath).parent_path(),
-                    fs::absolute(outPath).parent_path(), splices);
     if (!comment.empty()) {
         const std::size_t lt = std::size_t(root.offset_debug()) - 1;
         splices.push_back({lt, lt, "<!-- " + comment + " -->\n"});

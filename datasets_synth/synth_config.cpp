@@ -12,6 +12,7 @@
 
 #include "error.h"
 #include "scene_parser.h"
+#include "scene_xml.h"
 
 namespace phongfit {
 namespace {
@@ -34,12 +35,7 @@ const std::map<std::string, std::string> kOwnDefines = {{"kd", "albedo, ks_share
                                                         {"light_y", "light"},
                                                         {"light_z", "light"}};
 
-bool isIdentifier(const std::string& s) {
-    if (s.empty()) return false;
-    for (const char c : s)
-        if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') return false;
-    return true;
-}
+using scene_xml::isIdentifier;
 
 // Reads one config file; `fail` names the file, the key path and the value.
 class Reader {

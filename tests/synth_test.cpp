@@ -280,6 +280,27 @@ TEST_F(Synth, BakedSceneKeepsTheFileAndSetsTheDefaults) {
     EXPECT_NE(readFile(path("sample/scene.xml")).find("value=\"../meshes/a.obj\""),
               std::string::npos)
         << readFile(path("sample/scene.xml"));
+
+    // So does an environment map's, written out or given by a default, replaced or not; a default
+    // that names no file keeps its value.
+    std::ofstream(path("probe.xml"))
+        << "<scene version=\"0.6.0\">\n  <default name=\"map\" value=\"maps/probe.exr\"/>\n"
+           "  <default name=\"label\" value=\"maps/x\"/>\n"
+           "  <emitter type=\"envmap\"><string name=\"filename\" value=\"$map\"/></emitter>\n"
+           "  <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.exr\"/></emitter>\n"
+           "</scene>\n";
+    bakeSceneDefaults(path("probe.xml").string(), {}, "", path("sample/probe.xml").string());
+    const std::string probe = readFile(path("sample/probe.xml"));
+    for (const char* moved :
+         {"name=\"map\" value=\"../maps/probe.exr\"", "name=\"label\" value=\"maps/x\"",
+          "value=\"$map\"", "value=\"../sky.exr\""})
+        EXPECT_NE(probe.find(moved), std::string::npos) << moved << "\n" << probe;
+    EXPECT_EQ(bakeSceneDefaults(path("probe.xml").string(), {{"map", "other.exr"}}, "",
+                                path("sample/probe.xml").string()),
+              std::set<std::string>{"map"});
+    EXPECT_NE(readFile(path("sample/probe.xml")).find("name=\"map\" value=\"../other.exr\""),
+              std::string::npos)
+        << readFile(path("sample/probe.xml"));
 }
 
 TEST_F(Synth, SmallConfigGeneratesDeterministicallyAndRedoesOnlyIncompleteSamples) {
