@@ -233,6 +233,20 @@ TEST(SynthConfig, SecondOutsideConfigHoldsEveryCell) {
     }
 }
 
+// The drawn set (README, "Outside the matrix") reads: 48 coloured materials drawn over six lights,
+// n log-uniform from 2 to 2e5, none on a grid.
+TEST(SynthConfig, DrawnConfigDrawsColouredMaterialsUnderSixLights) {
+    const SynthConfig config = loadSynthConfig(PHONGFIT_CONFIGS_DIR "/drawn.json");
+    ASSERT_EQ(config.groups.size(), 6u);
+    EXPECT_EQ(config.totalSamples(), 48);
+    for (const GroupConfig& g : config.groups) {
+        EXPECT_FALSE(g.grid) << g.name;
+        EXPECT_TRUE(g.colour) << g.name;
+        EXPECT_EQ(g.n.lo, 2) << g.name;
+        EXPECT_EQ(g.n.hi, 200000) << g.name;
+    }
+}
+
 // The third set outside the matrix (README, "Outside the matrix") reads: 3 lights x 4 exponents x
 // 3 materials, the exponents beyond every other set's up to the fitter's bound.
 TEST(SynthConfig, ThirdOutsideConfigReachesTheExponentBound) {
