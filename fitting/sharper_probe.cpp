@@ -79,10 +79,10 @@ void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<Materia
         if (!probed(c) || p.isUnconstrained("n")) continue;
         // One that cannot tell them apart rules out nothing up to its start, nor within 3 of its
         // standard errors of where it went (beyond its start, where the lobe may be sharper yet).
-        // Nor does one that went past the converged n to a broader lobe: that is the pull of
-        // sparse paths (its half paths), not the images ruling its start out. One that told them
-        // apart and went on sharper than its start saw the images ask for a lobe sharper than any
-        // recording: none bounds it.
+        // Nor does one that went past the converged n to a broader lobe: that is the pull of its
+        // few paths towards lobes they reach, not the images ruling its start out. One that told
+        // them apart and went on sharper than its start saw the images ask for a lobe sharper
+        // than any recording: none bounds it.
         const double start = c.n * probeFactor(c);
         double reach = std::abs(p.n - c.n) + 3 * p.nStd;
         if (!tellsApart(c, p) || p.n < c.n)
