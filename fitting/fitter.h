@@ -9,7 +9,9 @@
 // reasoning and the measurements; the files it names hold the pieces.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <optional>
@@ -29,6 +31,13 @@ inline constexpr double kMinExposure = 1e-3 / kExposureCentre;
 inline constexpr double kMaxExposure = 1e6 / kExposureCentre;
 
 enum class LossKind { L2, Huber, Cauchy };
+
+// The covariance over channels of each of `pixels` (indices into view `view`'s observation) in
+// images rendered as the observed one was (its scene's sampler and samples per pixel) with the
+// materials `theta`; empty where the observed images have no noise. What a pixel's noise is where
+// no other pixel can show it (image_noise.h).
+using RenderedNoise = std::function<std::vector<Eigen::Matrix3d>(
+    int view, const std::vector<std::uint32_t>& pixels, const std::vector<PhongMaterial>& theta)>;
 
 enum class Estimator {
     InstrumentalVariables,  // consistent at any spp (docs/design/fitter.md)
@@ -165,6 +174,7 @@ struct FitOptions {
     int threads = 0;       // 0 = all hardware threads
     bool verbose = false;  // Ceres' progress on stdout and its brief report on stderr
     std::function<void(const FitRound&)> onRound;  // called after each round, e.g. for progress
+    RenderedNoise renderedNoise;  // unset: the image's noise modelled from the paths alone
     // Polled between solver iterations and rounds (e.g. interruptRequested): when it returns
     // true, the solve under way stops, its round is finished with the estimate so far, and no
     // further round starts. The result is then marked `interrupted`.

@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <utility>
 
+#include "exposure_block.h"
+#include "material_params.h"
 #include "standard_errors.h"
 
 namespace phongfit {
@@ -14,16 +17,67 @@ namespace {
 // The median of a chi-square variable with one degree of freedom, over its mean.
 constexpr double kChiSquareMedian = 0.4549;
 
+// A pixel holds a parameter with at least this share of its information (J^T J's diagonal); a
+// parameter held by more pixels than 1 / kHeldShare shows their noise in their residuals. The
+// images are rendered anew at the kRenderedPixels that hold the largest shares, and the kHolders
+// largest of each parameter are kept while the pixels are summed.
+constexpr double kHeldShare = 0.25;
+constexpr std::size_t kRenderedPixels = 4;
+constexpr std::size_t kHolders = 8;
+
+// A pixel's share of a parameter's information (its term of J^T J's diagonal), and the pixel.
+struct Holder {
+    double information = 0;
+    std::uint32_t pixel = 0;  // into UsedPixels::pixels
+
+    bool operator<(const Holder& other) const {  // more information first; ties by pixel
+        return information != other.information ? information > other.information
+                                                : pixel < other.pixel;
+    }
+};
+
 struct NoiseSums {
     Eigen::MatrixXd gram;   // J^T J
     Eigen::MatrixXd noise;  // J^T (path covariance) J
+    // Per natural parameter, the kHolders pixels holding most of its information.
+    std::vector<std::vector<Holder>> holders;
 
     NoiseSums& operator+=(const NoiseSums& other) {
         gram += other.gram;
         noise += other.noise;
+        for (std::size_t g = 0; g < holders.size(); ++g)
+            for (const Holder& h : other.holders[g]) keep(g, h);
         return *this;
     }
+
+    void keep(std::size_t g, const Holder& h) {
+        std::vector<Holder>& list = holders[g];
+        if (list.size() == kHolders && !(h < list.back())) return;
+        list.insert(std::upper_bound(list.begin(), list.end(), h), h);
+        if (list.size() > kHolders) list.pop_back();
+    }
 };
+
+// The pixels that hold each of `sums`' parameters: at least kHeldShare of its information, at
+// most kRenderedPixels in all (those holding the largest shares), by view.
+std::map<std::uint32_t, std::vector<std::uint32_t>> heldPixels(const NoiseSums& sums,
+                                                               const UsedPixels& prep) {
+    std::vector<std::pair<double, std::uint32_t>> shares;  // (-share, pixel)
+    for (std::size_t g = 0; g < sums.holders.size(); ++g)
+        for (const Holder& h : sums.holders[g])
+            if (const double total = sums.gram(Eigen::Index(g), Eigen::Index(g));
+                total > 0 && h.information >= kHeldShare * total)
+                shares.emplace_back(-h.information / total, h.pixel);
+    std::sort(shares.begin(), shares.end());
+    std::vector<std::uint32_t> chosen;
+    for (const auto& [share, pixel] : shares)
+        if (chosen.size() < kRenderedPixels &&
+            std::find(chosen.begin(), chosen.end(), pixel) == chosen.end())
+            chosen.push_back(pixel);
+    std::map<std::uint32_t, std::vector<std::uint32_t>> byView;
+    for (std::uint32_t i : chosen) byView[prep.pixels[i].view].push_back(i);
+    return byView;
+}
 
 // The median of `values` (reordered) and its standard error: half the distribution-free 68%
 // interval of the median, between the order statistics sqrt(N) / 2 either side of it.
@@ -39,6 +93,68 @@ Median medianOf(std::vector<double>& values) {
         return values[std::size_t(std::clamp(rank, 0.0, count - 1))];
     };
     return {at(count / 2), 0.5 * (at(count / 2 + reach) - at(count / 2 - reach))};
+}
+
+// A pixel's Jacobian (the mean of the two recordings'), with its residuals `r` and the covariance
+// of one of its paths; the Jacobian's columns are scratch.indices' natural coordinates.
+template <int P>
+Eigen::MatrixXd pixelTerms(Objective<P>& objective, const double* y, const UsedPixel& u,
+                           typename Objective<P>::Scratch& scratch,
+                           std::array<Eigen::Vector3d, 2>& r, Eigen::Matrix3d& covariance) {
+    covariance.setZero();
+    for (int k = 0; k < 2; ++k) {
+        r[k] = objective.residual(objective.recording(k, u.view), u, y, scratch,
+                                  &scratch.jacobians[k]);
+        covariance += 0.5 * objective.pathCovariance(k, u, y, scratch);
+    }
+    const std::span<const std::uint32_t> slots = objective.pixels().slotsOf(u);
+    std::vector<Eigen::Index>& indices = scratch.indices;
+    indices.clear();
+    Eigen::MatrixXd j(3, Eigen::Index(slots.size()) * P);
+    for (std::size_t a = 0; a < slots.size(); ++a) {
+        for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(slots[a]) * P + k);
+        j.middleCols(Eigen::Index(a) * P, P) =
+            0.5 * (scratch.jacobians[0][a] + scratch.jacobians[1][a]);
+    }
+    return j;
+}
+
+// What the pixels that hold a parameter add to the modelled noise sum (kappa times `sums`'):
+// their noise as rendered, where it is larger than the model's, which an image of stratified
+// samples can be by far at a highlight smaller than a pixel (docs/design/fitter.md, "The pixels
+// that hold a parameter, rendered anew").
+template <int P>
+Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const NoiseSums& sums,
+                                 double kappa, const RenderedNoise& rendered) {
+    const UsedPixels& prep = objective.pixels();
+    const ExposureBlock& exposure = objective.exposure();
+    std::vector<PhongMaterial> theta;
+    for (int m = 0; m < (exposure.fitted() ? exposure.slot() : objective.blocks()); ++m)
+        theta.push_back(naturalToPhong<P>(y + std::size_t(m) * P));
+    const double scale = exposure.value<P>(y);
+    const Eigen::Index size = sums.noise.rows();
+    const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size), {}};
+    Eigen::MatrixXd added = zero.noise;
+    for (const auto& [view, pixels] : heldPixels(sums, prep)) {
+        std::vector<std::uint32_t> film;
+        for (std::uint32_t i : pixels) film.push_back(prep.pixels[i].pixel);
+        const std::vector<Eigen::Matrix3d> covariances = rendered(int(view), film, theta);
+        if (covariances.size() != pixels.size()) continue;  // an image without noise
+        const auto raise = [&](std::size_t k, NoiseSums& sum,
+                               typename Objective<P>::Scratch& scratch) {
+            const UsedPixel& u = prep.pixels[pixels[k]];
+            std::array<Eigen::Vector3d, 2> r;
+            Eigen::Matrix3d covariance;
+            const Eigen::MatrixXd j = pixelTerms(objective, y, u, scratch, r, covariance);
+            const double w = objective.weight(u) * scale;
+            const Eigen::Matrix3d image = w * w * covariances[k];
+            if (!(image.trace() > kappa * covariance.trace())) return;
+            const std::vector<Eigen::Index>& indices = scratch.indices;
+            sum.noise(indices, indices) += j.transpose() * (image - kappa * covariance) * j;
+        };
+        added += objective.sumPixels(pixels.size(), zero, raise).noise;
+    }
+    return added;
 }
 
 }  // namespace
@@ -69,38 +185,34 @@ double noiseScale(std::vector<PixelNoise> pixels) {
 template <int P>
 std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                                                const std::vector<double>& y,
-                                               const std::vector<HeldParams>& held) {
+                                               const std::vector<HeldParams>& held,
+                                               const RenderedNoise& rendered) {
     // Exact recordings have no paths' variance to model the image's noise on.
     if (objective.exact()) return noStd(int(held.size()), P);
     const UsedPixels& prep = objective.pixels();
     const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
-    const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size)};
+    const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size),
+                         std::vector<std::vector<Holder>>(std::size_t(size))};
     std::vector<PixelNoise> noise(prep.seeingMaterial);
     const NoiseSums sums = objective.sumPixels(
         prep.seeingMaterial, zero,
         [&](std::size_t i, NoiseSums& sum, typename Objective<P>::Scratch& scratch) {
-            const UsedPixel& u = prep.pixels[i];
             std::array<Eigen::Vector3d, 2> r;
-            Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-            for (int k = 0; k < 2; ++k) {
-                r[k] = objective.residual(objective.recording(k, u.view), u, y.data(), scratch,
-                                          &scratch.jacobians[k]);
-                covariance += 0.5 * objective.pathCovariance(k, u, y.data(), scratch);
-            }
+            Eigen::Matrix3d covariance;
+            const Eigen::MatrixXd j =
+                pixelTerms(objective, y.data(), prep.pixels[i], scratch, r, covariance);
             noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), covariance.trace()};
-            const std::span<const std::uint32_t> slots = prep.slotsOf(u);
-            std::vector<Eigen::Index>& indices = scratch.indices;
-            indices.clear();
-            Eigen::MatrixXd j(3, Eigen::Index(slots.size()) * P);
-            for (std::size_t a = 0; a < slots.size(); ++a) {
-                for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(slots[a]) * P + k);
-                j.middleCols(Eigen::Index(a) * P, P) =
-                    0.5 * (scratch.jacobians[0][a] + scratch.jacobians[1][a]);
-            }
+            const std::vector<Eigen::Index>& indices = scratch.indices;
             sum.gram(indices, indices) += j.transpose() * j;
             sum.noise(indices, indices) += j.transpose() * covariance * j;
+            for (Eigen::Index c = 0; c < j.cols(); ++c)
+                sum.keep(std::size_t(indices[std::size_t(c)]),
+                         {j.col(c).squaredNorm(), std::uint32_t(i)});
         });
-    return naturalStd<P>(sums.gram, noiseScale(std::move(noise)) * sums.noise, held);
+    const double kappa = noiseScale(std::move(noise));
+    Eigen::MatrixXd modelled = kappa * sums.noise;
+    if (rendered) modelled += renderedNoiseSum(objective, y.data(), sums, kappa, rendered);
+    return naturalStd<P>(sums.gram, modelled, held);
 }
 
 void applyImageNoise(MaterialFit& fit) {
@@ -114,9 +226,11 @@ void applyImageNoise(MaterialFit& fit) {
 
 template std::vector<std::vector<double>> imageNoiseStd<kRgbBlock>(Objective<kRgbBlock>&,
                                                                    const std::vector<double>&,
-                                                                   const std::vector<HeldParams>&);
+                                                                   const std::vector<HeldParams>&,
+                                                                   const RenderedNoise&);
 template std::vector<std::vector<double>> imageNoiseStd<kGreyBlock>(Objective<kGreyBlock>&,
                                                                     const std::vector<double>&,
-                                                                    const std::vector<HeldParams>&);
+                                                                    const std::vector<HeldParams>&,
+                                                                    const RenderedNoise&);
 
 }  // namespace phongfit

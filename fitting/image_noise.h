@@ -7,7 +7,8 @@
 // (docs/design/fitter.md, "A parameter held by one noisy pixel"). The model is an image rendered
 // with independent samples; stratified ones (Sobol points) shrink some pixels' variance far more
 // than others': wide at the Cornell box's highlight, narrow at a point-lit sphere's, whose smooth
-// pixels Sobol points render almost without noise.
+// pixels Sobol points render almost without noise. There the pixels that hold a parameter are
+// rendered anew as the image was (FitOptions::renderedNoise).
 #pragma once
 
 #include <vector>
@@ -51,10 +52,13 @@ double noiseScale(std::vector<PixelNoise> pixels);
 // Per block, the natural parameters' standard errors at the flat natural coordinates `y` from the
 // image's modelled noise alone (least squares' sandwich over the pixels that see a material); 0
 // for `held` ones, where the image shows no noise beyond the model's, and for exact recordings.
+// With `rendered`, a pixel that holds a parameter (a share of its information no other pixel can
+// check) takes the noise rendered images have there where that is the larger.
 template <int P>
 std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                                                const std::vector<double>& y,
-                                               const std::vector<HeldParams>& held);
+                                               const std::vector<HeldParams>& held,
+                                               const RenderedNoise& rendered);
 
 // Raises `fit`'s standard errors to its image-noise ones (n's through log n).
 void applyImageNoise(MaterialFit& fit);

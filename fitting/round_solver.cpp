@@ -94,7 +94,10 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out, const FreeExponents* free) 
                                        analysis_, params_.held());
     out.materials.clear();
     const std::vector<std::vector<double>> imageNoise =
-        imageNoiseStd(objective_, at_.y, params_.held());
+        // The first round, recorded at the start, is judged by the tolerance alone: its
+        // estimate's pixels are not rendered anew.
+        imageNoiseStd(objective_, at_.y, params_.held(),
+                      firstRound_ ? RenderedNoise{} : options_.renderedNoise);
     for (int m = 0; m < params_.materialCount(); ++m) {
         MaterialFit& fit = out.materials.emplace_back(materialFit(params_, m, out.naturalStd[m]));
         const MaterialFit image = materialFit(params_, m, imageNoise[m]);

@@ -97,6 +97,47 @@ void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
                                 v.imagePath));
 }
 
+// The image's render settings: from `phongfit render`'s sidecar IMAGE.json where there is one,
+// else the scene's sampler and sampleCount.
+SceneView::RenderedAs renderedAs(const std::string& imagePath, const SensorDesc& film) {
+    SceneView::RenderedAs as{film.sampleCount, film.pixelSampler, "mixture", true, "scene"};
+    const fs::path sidecar = imagePath + ".json";
+    if (!fs::exists(sidecar)) return as;
+    const nlohmann::json j = nlohmann::json::parse(std::ifstream(sidecar), nullptr, false);
+    const auto fail = [&](const std::string& what) {
+        return Error(
+            fmt::format("{}: {} (the settings `phongfit render` writes beside an image: "
+                        "spp, pixel_sampler, sampler, mis)",
+                        sidecar.string(), what));
+    };
+    if (!j.is_object()) throw fail("not a JSON object");
+    if (!j.contains("spp")) return as;
+    if (!j["spp"].is_number_integer() || j["spp"].get<long long>() < 0 ||
+        j["spp"].get<long long>() > (1 << 20))
+        throw fail(
+            fmt::format("spp {} is not a whole number in [0, {}]", j["spp"].dump(), 1 << 20));
+    as.spp = j["spp"].get<int>();
+    as.source = sidecar.string();
+    if (j.contains("pixel_sampler")) {
+        const auto& names = pixelSamplerNames();
+        if (!j["pixel_sampler"].is_string() ||
+            std::find(names.begin(), names.end(), j["pixel_sampler"].get<std::string>()) ==
+                names.end())
+            throw fail(fmt::format("pixel_sampler {} (allowed: {})", j["pixel_sampler"].dump(),
+                                   fmt::join(names, ", ")));
+        as.pixelSampler = pixelSamplerType(j["pixel_sampler"].get<std::string>());
+    }
+    if (j.contains("sampler")) {
+        if (!j["sampler"].is_string()) throw fail("sampler is not a string");
+        as.sampler = j["sampler"].get<std::string>();
+    }
+    if (j.contains("mis")) {
+        if (!j["mis"].is_boolean()) throw fail("mis is not true or false");
+        as.mis = j["mis"].get<bool>();
+    }
+    return as;
+}
+
 SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
                    const std::vector<std::uint8_t>* mask) {
     SceneView v;
@@ -127,6 +168,7 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
         throw Error(fmt::format("{}: image is {}x{} but the film of {} is {}x{}", v.imagePath,
                                 image.width, image.height, v.scenePath, film.width, film.height));
     observe(v, image, in, mask);
+    v.renderedAs = renderedAs(v.imagePath, film);
     v.renderer = std::make_unique<Renderer>(std::move(scene));
     const std::vector<int> seen = v.renderer->bsdfSeen(0);
     v.direct = seesAny(seen, v.fittedBsdfs);
@@ -135,6 +177,13 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
         for (std::size_t s = 0; s < v.fittedBsdfs.size(); ++s)
             if (seen[p] == v.fittedBsdfs[s] && v.observation.valid[p]) v.slotSeen[s] = true;
     return v;
+}
+
+// How many pixels from its own a pixel's value takes samples: the Gaussian's 3 standard
+// deviations, none for a box.
+int filterReach(const SensorDesc& film) {
+    return film.filter == SensorDesc::Filter::Box ? 0
+                                                  : int(std::ceil(3 * film.gaussianStddev + 0.5));
 }
 
 // Where every fitted material is seen directly somewhere, the pixels that see none of them through
@@ -148,10 +197,8 @@ void leaveOutIndirectPixels(std::vector<SceneView>& views, std::size_t materials
             return;
     for (SceneView& v : views) {
         const SensorDesc& film = v.renderer->scene().sensor;
-        // A pixel's samples reach this far from its centre (the Gaussian's 3 standard deviations).
-        const int radius = film.filter == SensorDesc::Filter::Box
-                               ? 1
-                               : std::max(1, int(std::ceil(3 * film.gaussianStddev + 0.5)));
+        // A pixel's samples reach this far from its centre.
+        const int radius = std::max(1, filterReach(film));
         // The direct pixels the fit keeps, widened by that reach.
         cv::Mat near(v.observation.height, v.observation.width, CV_8U);
         for (std::size_t p = 0; p < v.direct.size(); ++p)
@@ -196,6 +243,59 @@ cv::Mat comparison(const SceneView& v, const std::vector<PhongMaterial>& fitted,
                                                    rendered.rgb[3 * p + 2]);
     }
     return comparisonImage(panels);
+}
+
+// FitOptions::renderedNoise for view `v` (its fit covering `window`): the listed pixels rendered
+// kNoiseRenders times at `spp` paths a pixel in the scene's sampler, each with its own seed, and
+// their values' covariance over the renders. Only they and the pixels their filter reaches into
+// them are traced.
+constexpr int kNoiseRenders = 16;
+
+std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow& window, int spp,
+                                           const SceneRecording& recording,
+                                           const std::vector<std::uint32_t>& pixels,
+                                           const std::vector<PhongMaterial>& theta) {
+    Scene scene = v.renderer->scene();
+    for (std::size_t s = 0; s < theta.size() && s < v.fittedBsdfs.size(); ++s)
+        scene.bsdfs[v.fittedBsdfs[s]].params = theta[s];
+    const SensorDesc& film = scene.sensor;
+    const int reach = filterReach(film);
+    std::vector<std::uint8_t> traced(std::size_t(film.width) * std::size_t(film.height), 0);
+    std::vector<std::size_t> at;  // each pixel's index on the whole film
+    for (std::uint32_t p : pixels) {
+        const int x = window.x0 + int(p % std::uint32_t(window.width)),
+                  y = window.y0 + int(p / std::uint32_t(window.width));
+        at.push_back(std::size_t(y) * std::size_t(film.width) + std::size_t(x));
+        for (int yy = std::max(0, y - reach); yy <= std::min(film.height - 1, y + reach); ++yy)
+            for (int xx = std::max(0, x - reach); xx <= std::min(film.width - 1, x + reach); ++xx)
+                traced[std::size_t(yy) * std::size_t(film.width) + std::size_t(xx)] = 1;
+    }
+    const Renderer renderer(std::move(scene));
+    RenderOptions options;
+    options.spp = spp;
+    options.pixelSampler = v.renderedAs.pixelSampler;
+    options.sampler = v.renderedAs.sampler;
+    options.mis = v.renderedAs.mis;
+    options.threads = recording.threads;
+    options.maxDepth = v.maxDepth;
+    options.quiet = true;
+    options.rendered = traced;
+    std::vector<Eigen::Vector3d> sum(pixels.size(), Eigen::Vector3d::Zero());
+    std::vector<Eigen::Matrix3d> squares(pixels.size(), Eigen::Matrix3d::Zero());
+    for (int k = 0; k < kNoiseRenders; ++k) {
+        options.seed = recording.seed * 7919 + 104729 + std::uint64_t(k);
+        const RenderResult r = renderer.render(options);
+        for (std::size_t i = 0; i < pixels.size(); ++i) {
+            const Eigen::Vector3d c(r.rgb[3 * at[i]], r.rgb[3 * at[i] + 1], r.rgb[3 * at[i] + 2]);
+            sum[i] += c;
+            squares[i] += c * c.transpose();
+        }
+    }
+    std::vector<Eigen::Matrix3d> covariance;
+    for (std::size_t i = 0; i < pixels.size(); ++i)
+        covariance.push_back((squares[i] - sum[i] * sum[i].transpose() / kNoiseRenders) /
+                             (kNoiseRenders - 1));
+    return covariance;
 }
 
 }  // namespace
@@ -286,10 +386,33 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
         return v.renderer->record(o).paths;
     };
     FitOptions o = options;
+    o.renderedNoise = [&](int view, const std::vector<std::uint32_t>& pixels,
+                          const std::vector<PhongMaterial>& theta) {
+        const SceneView& v = problem.views[std::size_t(view)];
+        const int spp = recording.imageSpp >= 0 ? recording.imageSpp : v.renderedAs.spp;
+        if (spp <= 0) return std::vector<Eigen::Matrix3d>{};
+        return renderedNoise(v, windows[std::size_t(view)], spp, recording, pixels, theta);
+    };
     o.recordingFollowsEstimate = !std::all_of(problem.views.begin(), problem.views.end(),
                                               [](const SceneView& v) { return v.deltaLightsOnly; });
     return fitMaterials(observations, record, problem.start, o);
 }
+
+namespace {
+
+// What fit.json says of a view's image noise as rendered (FitOptions::renderedNoise).
+nlohmann::json renderedAsJson(const SceneView& v, const SceneRecording& recording) {
+    const SceneView::RenderedAs& as = v.renderedAs;
+    const int spp = recording.imageSpp >= 0 ? recording.imageSpp : as.spp;
+    if (spp == 0) return "without noise";
+    return {{"spp", spp},
+            {"pixel_sampler", pixelSamplerName(as.pixelSampler)},
+            {"sampler", as.sampler},
+            {"mis", as.mis},
+            {"from", recording.imageSpp >= 0 ? "--image-spp" : as.source}};
+}
+
+}  // namespace
 
 void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
                    const SceneRecording& recording, int compareSpp, const std::string& dir) {
@@ -322,7 +445,8 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
                                    {"pixels_clipped", v.clipped},
                                    {"pixels_masked", v.masked},
                                    {"pixels_off_the_materials", v.offMaterials},
-                                   {"pixels_non_finite", v.nonFinite}});
+                                   {"pixels_non_finite", v.nonFinite},
+                                   {"image_rendered_as", renderedAsJson(v, recording)}});
     }
     fs::create_directories(dir);
     const fs::path out(dir);

@@ -57,6 +57,16 @@ struct SceneView {
     // Left out: pixels whose footprint is off every fitted material, where the materials are seen
     // directly (loadSceneFit): they see them only through other surfaces, if at all.
     std::size_t offMaterials = 0;
+    // How the image was rendered, where no pixel but its own shows a pixel's noise
+    // (FitOptions::renderedNoise): the scene's sampler and sampleCount, or what `phongfit render`
+    // wrote beside the image (IMAGE.json: spp, pixel_sampler, sampler, mis).
+    struct RenderedAs {
+        int spp = 0;  // 0: an image without noise
+        PixelSamplerType pixelSampler = PixelSamplerType::Sobol;
+        std::string sampler = "mixture";
+        bool mis = true;
+        std::string source;  // "scene" or the sidecar's path
+    } renderedAs;
 };
 
 struct SceneFitProblem {
@@ -79,6 +89,10 @@ struct SceneRecording {
     // Spherical and parallelogram lights near a fitted vertex's mirror direction by rings
     // (RecordOptions::lightRings); false: sampled alone.
     bool lightRings = true;
+    // The samples per pixel the observed images were rendered with, in their scenes' samplers:
+    // where one pixel holds a parameter its noise is measured on renders like it
+    // (FitOptions::renderedNoise). -1: each scene's sampleCount; 0: images without noise.
+    int imageSpp = -1;
 };
 
 // Reads and checks every input. Throws Error naming the file and what is allowed.

@@ -65,6 +65,7 @@ void runDemo(const DemoArgs& args) {
     SceneRecording recording;
     recording.directSpp = 32;
     recording.threads = args.threads;
+    recording.imageSpp = args.spp;
     fmt::print(
         "fitting the sphere from kd = {}, ks = {}, n = {} ({} paths per pixel and round, {} "
         "where the sphere is seen)\n",

@@ -35,7 +35,7 @@ struct FitCli {
     std::string kd, ks;
     std::optional<double> n;
     double timeBudget = 0, precision = kDefaultPrecision, maxMemory = 0;
-    int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6;
+    int spp = 4, directSpp = 0, adaptiveSpp = 0, compareSpp = 32, rounds = 6, imageSpp = -1;
     bool fitExposure = false, ignoreNonFinite = false, keepIndirect = false;
     bool sampledAreaLights = false;
     std::uint64_t seed = 0;
@@ -96,8 +96,8 @@ void runSceneFit(const FitCli& a) {
     if (!a.ks.empty()) in.ks = parseColorOption(a.ks, "--ks");
     in.n = a.n;
     const SceneFitProblem problem = loadSceneFit(in);
-    const SceneRecording recording{a.spp,     a.directSpp,   a.seed,
-                                   a.threads, a.adaptiveSpp, !a.sampledAreaLights};
+    const SceneRecording recording{a.spp,         a.directSpp,          a.seed,    a.threads,
+                                   a.adaptiveSpp, !a.sampledAreaLights, a.imageSpp};
     if (!a.quiet)
         options.onRound = [&](const FitRound& r) { printRound(r, problem, a.fitExposure); };
     const FitResult result = fitScene(problem, recording, options);
@@ -304,6 +304,15 @@ void addFitCommand(CLI::App& app) {
         ->add_option("--compare-spp", a->compareSpp,
                      "paths per pixel of the re-rendered column of compare.png")
         ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
+    scene
+        ->add_option("--image-spp", a->imageSpp,
+                     "samples per pixel the images were rendered with: where a pixel or a few "
+                     "hold a parameter (a highlight smaller than a pixel), their noise is measured "
+                     "on 16 renders of them like the image (-1: the spp of `phongfit render`'s "
+                     "IMAGE.json beside the image, else the scene's sampleCount; 0: images without "
+                     "noise, such as closed forms)")
+        ->check(CLI::Range(-1, 1 << 20))
         ->capture_default_str();
     scene->add_option("--rounds", a->rounds, "at most this many record-and-solve rounds")
         ->check(CLI::Range(1, 100));

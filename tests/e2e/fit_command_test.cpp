@@ -97,6 +97,12 @@ TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
     test::expectPrecisionClaimHolds(report, 0.01);
     EXPECT_FALSE(report.contains("exposure")) << "only with --fit-exposure";
     EXPECT_EQ(report["views"][0]["max_depth"], 2);
+    // The image's render settings come from what `phongfit render` wrote beside it, not the
+    // scene's sampleCount (4 by default here).
+    const auto& as = report["views"][0]["image_rendered_as"];
+    EXPECT_EQ(as["spp"], 64) << as.dump();
+    EXPECT_EQ(as["pixel_sampler"], "sobol") << as.dump();
+    EXPECT_EQ(as["from"], path("sphere.exr") + ".json") << as.dump();
     EXPECT_NEAR(m["n"].get<double>(), 30, 30 * 0.1)
         << "a coarse check; recovery is tested elsewhere";
 
@@ -264,6 +270,13 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
     writeExr(glaring, path("glaring.exr"));
     const std::string view = kSphere + ":" + path("sphere.exr");
     const std::string cornell = kScenes + "/cornell_phong.xml";
+    // Render settings beside an image that are not phongfit render's.
+    const auto sidecar = [&](const std::string& name, const std::string& text) {
+        fs::copy_file(path("sphere.exr"), path(name + ".exr"),
+                      fs::copy_options::overwrite_existing);
+        std::ofstream(path(name + ".exr.json")) << text;
+        return kSphere + ":" + path(name + ".exr");
+    };
 
     struct Case {
         std::vector<std::string> args;
@@ -293,6 +306,14 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
          "times as bright as the scene renders them"},
         {{"--capture", path("capture"), "--fit-exposure"},
          "--fit-exposure does not apply to --capture"},
+        {{"--view", sidecar("sidecar_text", "spp = 64"), "--material", "sphere"},
+         "sidecar_text.exr.json: not a JSON object"},
+        {{"--view", sidecar("sidecar_spp", "{\"spp\": -3}"), "--material", "sphere"},
+         "spp -3 is not a whole number"},
+        {{"--view", sidecar("sidecar_sampler", "{\"spp\": 16, \"pixel_sampler\": \"halton\"}"),
+          "--material", "sphere"},
+         "pixel_sampler \"halton\" (allowed: independent, sobol, ldsampler)"},
+        {{"--view", view, "--material", "sphere", "--image-spp", "-2"}, "--image-spp"},
     };
     for (const Case& c : cases) {
         std::vector<std::string> args = {"fit"};

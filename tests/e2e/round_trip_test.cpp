@@ -257,6 +257,39 @@ TEST_P(SubPixelHighlight, KeepsItsExponentFree) {
 
 INSTANTIATE_TEST_SUITE_P(RoundTrip, SubPixelHighlight, ::testing::Values(3, 1));
 
+// The third outside set's 0018: a point-lit sphere at 256 x 256 whose highlight is a tenth of a
+// pixel (kd 0.05, ks 0.9, n 200000), its image rendered with 256 Sobol points a pixel, as its scene
+// says. One pixel holds ks, and the image's noise there (3.6% in ks over image seeds) is in no
+// other pixel; the smooth pixels, which Sobol points render almost without noise, show none to
+// model it on. At image seeds 1 and 2 the fit (recording seed 0) said ks 0.9351 and 0.8569 +-
+// 0.005 before that pixel was rendered anew as the scene renders it (FitOptions::renderedNoise):
+// +- 0.021 and 0.020 since. Told the image has no noise (--image-spp 0) it still says +- 0.005.
+class HighlightPixelNoise : public RoundTrip, public ::testing::WithParamInterface<const char*> {};
+
+TEST_P(HighlightPixelNoise, IsRenderedAsTheSceneRendersIt) {
+    const std::map<std::string, std::string> truth = {{"kd", "0.05"},    {"ks", "0.9"},
+                                                      {"n", "200000"},   {"width", "256"},
+                                                      {"height", "256"}, {"spp", "256"}};
+    const std::string view = kPoint + ":" + render(kPoint, truth, "tiny", 256, GetParam());
+    std::vector<std::string> args = {"--kd", "0.3", "--ks", "0.3", "--n", "2000"};
+    const std::vector<std::string> d = defines(truth);
+    args.insert(args.end(), d.begin(), d.end());
+    const auto rendered = fit({view}, args, "rendered", 0)["materials"]["sphere"];
+    args.insert(args.end(), {"--image-spp", "0"});
+    const auto modelled = fit({view}, args, "modelled", 0)["materials"]["sphere"];
+    for (int c = 0; c < 3; ++c) {
+        const double ks = rendered["ks"][c].get<double>(),
+                     std = rendered["ks_std"][c].get<double>();
+        EXPECT_LT(std::abs(ks - 0.9), 3 * std) << ks << " +- " << std;
+        EXPECT_LT(std, 0.05) << "the pixel's noise is a few percent of ks, not more";
+        EXPECT_EQ(modelled["ks"][c].get<double>(), ks) << "only the standard errors change";
+        const double claimed = modelled["ks_std"][c].get<double>();
+        EXPECT_GT(std::abs(ks - 0.9), 3 * claimed) << ks << " +- " << claimed;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(RoundTrip, HighlightPixelNoise, ::testing::Values("1", "2"));
+
 // A backlit sphere (stiff-case study sample 35): at 4 paths round 0, recorded at the start
 // (n = 100 for a true 10.7), sees too little of the lobe and holds n there; held for good, ks
 // stayed small and kd went to 0.96 +- 0.14, 4.6 standard errors off. The lobe test is decided
