@@ -135,7 +135,9 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
     const Eigen::Index size = sums.noise.rows();
     const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size), {}};
     Eigen::MatrixXd added = zero.noise;
-    for (const auto& [view, pixels] : heldPixels(sums, prep)) {
+    for (const auto& held : heldPixels(sums, prep)) {
+        const std::uint32_t view = held.first;
+        const std::vector<std::uint32_t>& pixels = held.second;  // a lambda captures it below
         std::vector<std::uint32_t> film;
         for (std::uint32_t i : pixels) film.push_back(prep.pixels[i].pixel);
         const std::vector<Eigen::Matrix3d> covariances = rendered(int(view), film, theta);
