@@ -132,9 +132,8 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
     for (int m = 0; m < (exposure.fitted() ? exposure.slot() : objective.blocks()); ++m)
         theta.push_back(naturalToPhong<P>(y + std::size_t(m) * P));
     const double scale = exposure.value<P>(y);
-    const Eigen::Index size = sums.noise.rows();
-    const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size), {}};
-    Eigen::MatrixXd added = zero.noise;
+    const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(sums.noise.rows(), sums.noise.cols());
+    Eigen::MatrixXd added = zero;
     for (const auto& held : heldPixels(sums, prep)) {
         const std::uint32_t view = held.first;
         const std::vector<std::uint32_t>& pixels = held.second;  // a lambda captures it below
@@ -142,7 +141,7 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
         for (std::uint32_t i : pixels) film.push_back(prep.pixels[i].pixel);
         const std::vector<Eigen::Matrix3d> covariances = rendered(int(view), film, theta);
         if (covariances.size() != pixels.size()) continue;  // an image without noise
-        const auto raise = [&](std::size_t k, NoiseSums& sum,
+        const auto raise = [&](std::size_t k, Eigen::MatrixXd& sum,
                                typename Objective<P>::Scratch& scratch) {
             const UsedPixel& u = prep.pixels[pixels[k]];
             std::array<Eigen::Vector3d, 2> r;
@@ -152,9 +151,9 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
             const Eigen::Matrix3d image = w * w * covariances[k];
             if (!(image.trace() > kappa * covariance.trace())) return;
             const std::vector<Eigen::Index>& indices = scratch.indices;
-            sum.noise(indices, indices) += j.transpose() * (image - kappa * covariance) * j;
+            sum(indices, indices) += j.transpose() * (image - kappa * covariance) * j;
         };
-        added += objective.sumPixels(pixels.size(), zero, raise).noise;
+        added += objective.sumPixels(pixels.size(), zero, raise);
     }
     return added;
 }

@@ -245,6 +245,11 @@ cv::Mat comparison(const SceneView& v, const std::vector<PhongMaterial>& fitted,
     return comparisonImage(panels);
 }
 
+// The samples per pixel view `v`'s image was rendered with: --image-spp's, else its own.
+int imageSpp(const SceneView& v, const SceneRecording& recording) {
+    return recording.imageSpp >= 0 ? recording.imageSpp : v.renderedAs.spp;
+}
+
 // FitOptions::renderedNoise for view `v` (its fit covering `window`): the listed pixels rendered
 // kNoiseRenders times at `spp` paths a pixel in the scene's sampler, each with its own seed, and
 // their values' covariance over the renders. Only they and the pixels their filter reaches into
@@ -389,7 +394,7 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
     o.renderedNoise = [&](int view, const std::vector<std::uint32_t>& pixels,
                           const std::vector<PhongMaterial>& theta) {
         const SceneView& v = problem.views[std::size_t(view)];
-        const int spp = recording.imageSpp >= 0 ? recording.imageSpp : v.renderedAs.spp;
+        const int spp = imageSpp(v, recording);
         if (spp <= 0) return std::vector<Eigen::Matrix3d>{};
         return renderedNoise(v, windows[std::size_t(view)], spp, recording, pixels, theta);
     };
@@ -403,7 +408,7 @@ namespace {
 // What fit.json says of a view's image noise as rendered (FitOptions::renderedNoise).
 nlohmann::json renderedAsJson(const SceneView& v, const SceneRecording& recording) {
     const SceneView::RenderedAs& as = v.renderedAs;
-    const int spp = recording.imageSpp >= 0 ? recording.imageSpp : as.spp;
+    const int spp = imageSpp(v, recording);
     if (spp == 0) return "without noise";
     return {{"spp", spp},
             {"pixel_sampler", pixelSamplerName(as.pixelSampler)},
