@@ -19,6 +19,7 @@
 #include "memory_plan.h"
 #include "path_growth.h"
 #include "path_importance.h"
+#include "phong_sampler.h"
 #include "scene_parser.h"
 #include "scene_writer.h"
 
@@ -118,19 +119,20 @@ SceneView::RenderedAs renderedAs(const std::string& imagePath, const SensorDesc&
             fmt::format("spp {} is not a whole number in [0, {}]", j["spp"].dump(), 1 << 20));
     as.spp = j["spp"].get<int>();
     as.source = sidecar.string();
-    if (j.contains("pixel_sampler")) {
-        const auto& names = pixelSamplerNames();
-        if (!j["pixel_sampler"].is_string() ||
-            std::find(names.begin(), names.end(), j["pixel_sampler"].get<std::string>()) ==
-                names.end())
-            throw fail(fmt::format("pixel_sampler {} (allowed: {})", j["pixel_sampler"].dump(),
-                                   fmt::join(names, ", ")));
-        as.pixelSampler = pixelSamplerType(j["pixel_sampler"].get<std::string>());
-    }
-    if (j.contains("sampler")) {
-        if (!j["sampler"].is_string()) throw fail("sampler is not a string");
-        as.sampler = j["sampler"].get<std::string>();
-    }
+    // A name from `names`, where the sidecar has `key`.
+    const auto named = [&](const char* key, const std::vector<std::string>& names,
+                           std::string& out) {
+        if (!j.contains(key)) return;
+        if (!j[key].is_string() ||
+            std::find(names.begin(), names.end(), j[key].get<std::string>()) == names.end())
+            throw fail(
+                fmt::format("{} {} (allowed: {})", key, j[key].dump(), fmt::join(names, ", ")));
+        out = j[key].get<std::string>();
+    };
+    std::string pixelSampler = pixelSamplerName(as.pixelSampler);
+    named("pixel_sampler", pixelSamplerNames(), pixelSampler);
+    as.pixelSampler = pixelSamplerType(pixelSampler);
+    named("sampler", phongSamplerNames(), as.sampler);
     if (j.contains("mis")) {
         if (!j["mis"].is_boolean()) throw fail("mis is not true or false");
         as.mis = j["mis"].get<bool>();

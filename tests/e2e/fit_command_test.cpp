@@ -313,6 +313,9 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         {{"--view", sidecar("sidecar_sampler", "{\"spp\": 16, \"pixel_sampler\": \"halton\"}"),
           "--material", "sphere"},
          "pixel_sampler \"halton\" (allowed: independent, sobol, ldsampler)"},
+        {{"--view", sidecar("sidecar_strategy", "{\"spp\": 16, \"sampler\": \"importance\"}"),
+          "--material", "sphere"},
+         "sampler \"importance\" (allowed: "},
         {{"--view", view, "--material", "sphere", "--image-spp", "-2"}, "--image-spp"},
     };
     for (const Case& c : cases) {
