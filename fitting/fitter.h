@@ -148,6 +148,11 @@ struct FitOptions {
     // lobe as well as another). Only such recordings can be blind to a sharper lobe: without,
     // no sharper probe (sharper_probe.h).
     bool recordingFollowsEstimate = true;
+    // Whether some light is seen over a solid angle (an area light, an environment): a lobe's
+    // direct highlight is then the light's image, which paths recorded at a broader lobe rarely
+    // reach, where a delta light's is replayed at any lobe. Only then does a fit whose rounds end
+    // unsettled spend its last round probing an untested sharper side (sharperSideUntested).
+    bool extendedLights = true;
     // Converged when, between the estimate a round recorded at and the one it solved for, every
     // free kd, ks changed by less than tolerance * max(|value|, 0.01) and log n by less than
     // tolerance, or the parameter moved less than stdTolerance standard errors (two rounds'

@@ -284,6 +284,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // first could not tell the converged n from it (probePaths).
     double probePathFactor = kProbePaths, retryPathFactor = kProbePaths;
     std::vector<PhongMaterial> probeStart;
+    // Per material, the sharpest n a round recorded at; and whether the last round probes an
+    // estimate that had not settled.
+    std::vector<double> sharpestRecorded(start.size(), 0.0);
+    bool unsettledProbe = false;
     bool exact = false;  // the recorder returned one exact set: every round is the same problem
     // Each round records at the last estimate, so what it sees depends on it (scans of the
     // broader side, strides and probes apply).
@@ -340,6 +344,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const double recordFactor = probed ? probePathFactor : pathFactor;
         const RoundSets sets = recordAll(theta.materials, round, importance, recordFactor);
         const double recordSeconds = secondsSince(roundBegin);
+        for (std::size_t s = 0; s < sharpestRecorded.size(); ++s)
+            sharpestRecorded[s] = std::max(sharpestRecorded[s], theta.materials[s].n);
         exact = sets.first == sets.second;
         checkRoundSets(sets, observations, int(start.size()));
         if (round == 0 && !exact) firstPaths = pathsPerPixel(*sets.first);
@@ -504,8 +510,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 strided = atStride = true;
                 result.converged = false;
             }
+        const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
         if (result.converged) {
-            const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
             const Settled next =
                 settle<P>(result, out, params, options, pooledFactor, !exact,
                           followsEstimate && !exact, round + 1 == maxRounds, theta.materials);
@@ -525,15 +531,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     importanceTaken = false;
                 }
             }
-            if (!sharper.empty()) {
-                probed = result;
-                result.converged = false;
-                result.stopReason = "rounds";
-                probePathFactor = kProbePaths;
-                retryPathFactor = probePaths(out.materials, pooledFactor);
-                probeStart = sharper;
-                growth = probePathFactor / recordFactor;
-            } else {
+            if (sharper.empty()) {
                 // A pool needs only the paths it lacks.
                 growth = joinable ? pathsThePoolLacks(pooledFactor, next.pathGrowth) / recordFactor
                                   : next.pathGrowth;
@@ -542,6 +540,16 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     joinable ? recordFactor * growth : std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
             }
+        } else if (round >= 2 && round + 2 == maxRounds && followsEstimate &&
+                   options.extendedLights && !exact && !r.probe && !atStride &&
+                   allResolved(out.materials) &&
+                   sharperSideUntested(out.materials, sharpestRecorded)) {
+            // The rounds end next round with an estimate that has not settled, once it has
+            // travelled from the start, its lobe's sharper side untested: the last round probes it
+            // rather than add paths, so that a lobe the recordings are blind to is not reported
+            // as bounded (docs/design/fitter.md, "The last round's probe").
+            sharper = sharperProbe(out.materials, theta.materials);
+            unsettledProbe = true;
         } else if (!atStride && !r.probe && round >= 2 && !exact && movedPast) {
             // Not settled, by more than the precision target allows, once the estimate has
             // travelled from the start (rounds 0 and 1, as for the rounds' scatter); not a probe's
@@ -553,7 +561,16 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         }
         // The probe round records, and starts its solve, at the sharper lobe, and spends its
         // extra paths where that lobe's parameters are informed.
-        if (!sharper.empty()) theta.materials = sharper;
+        if (!sharper.empty()) {
+            probed = result;
+            result.converged = false;
+            result.stopReason = "rounds";
+            probePathFactor = kProbePaths;
+            retryPathFactor = probePaths(out.materials, pooledFactor);
+            probeStart = sharper;
+            growth = probePathFactor / recordFactor;
+            theta.materials = sharper;
+        }
         if (!exact && round + 1 < maxRounds && !importanceTaken)
             importance = nextImportance<P>(observations, sets, params, theta, out, threads);
     }
@@ -568,7 +585,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         // widening): while it still moved, or settled round by round but not as precise as asked,
         // which a climb does as well.
         const std::string& why = result.stopReason;
-        if (!result.converged && !result.rounds.empty() && !result.rounds.back().probe &&
+        if (!result.converged && !result.rounds.empty() &&
+            (!result.rounds.back().probe || unsettledProbe) &&
             (why == "rounds" || why == "time budget" || why == "memory" || why == "interrupted" ||
              why == "sharper lobe" || why == "precision not met" || why == "path cap"))
             widenToDrift(result);

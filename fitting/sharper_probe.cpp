@@ -40,6 +40,14 @@ std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& material
     return any ? at : std::vector<PhongMaterial>{};
 }
 
+bool sharperSideUntested(const std::vector<MaterialFit>& materials,
+                         const std::vector<double>& sharpest) {
+    for (std::size_t s = 0; s < materials.size() && s < sharpest.size(); ++s)
+        if (probed(materials[s]) && sharpest[s] < std::sqrt(kProbeFactor) * materials[s].n)
+            return true;
+    return false;
+}
+
 double probePaths(const std::vector<MaterialFit>& converged, double pathFactor) {
     double paths = kProbePaths;
     for (const MaterialFit& c : converged) {

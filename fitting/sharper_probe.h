@@ -60,6 +60,14 @@ bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<Mate
 // apart and went on sharper than its start.
 void widenToProbe(std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
+// Whether some lobe sharperProbe would probe in `materials` was never recorded at
+// sqrt(kProbeFactor) times its n or more: `sharpest`, per material, the sharpest n a round recorded
+// at. A round recorded that far up whose estimate came down to n is a probe that came back
+// (probeReturned: nearer n than its start in log n); a fit that ends without one has not tested its
+// lobe's sharper side.
+bool sharperSideUntested(const std::vector<MaterialFit>& materials,
+                         const std::vector<double>& sharpest);
+
 // Each free lobe in `materials` too near kMaxExponent to be probed (n times kProbeFactor above it):
 // no recording went sharper, so its n standard error reaches the bound.
 void widenToBound(std::vector<MaterialFit>& materials);

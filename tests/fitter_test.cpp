@@ -1084,6 +1084,66 @@ TEST(Fitter, RoundsThatDoNotSettleRecordMorePaths) {
     EXPECT_EQ(pathFactors, (std::vector<double>{1, 1, 1, 1})) << "no target";
 }
 
+// Rounds that end with the estimate still moving (each round's paths see the lobe 20% sharper and
+// broader in turn: n 50 and 75 for the truth's 60), its lobe never recorded sqrt(kProbeFactor)
+// times sharper than it (from n 30): the last round probes it rather than add paths (set C's
+// Cornell box under a 22-degree light, n 48341, had ended at 3097 +- 578, never recorded above
+// 3358). A probe whose paths see the lobe kProbeFactor times sharper stays there: n reaches it,
+// "sharper lobe". One that comes back leaves the estimate it probed, not converged, its n not
+// widened to the probe's lobe. Rounds that started sharper (n 1000) had tested that side, and the
+// last round adds paths as before.
+TEST(Fitter, AnEstimateStillMovingWhenTheRoundsEndHasItsSharperSideProbed) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    bool probeSeesSharper = true;
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>&, int recording,
+                                    const std::vector<float>&, double pathFactor) {
+        if (pathFactor != kProbePaths) return flippedPaths(scene, recording, 0.2);
+        PathSet ps = flippedPaths(scene, recording, 0.0);
+        if (probeSeesSharper)
+            for (PathVertex& v : ps.vertices) v.logCos /= float(kProbeFactor);
+        return ps;
+    };
+    FitOptions options;
+    options.maxRounds = 4;
+    const PhongMaterial broad = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 30);
+    const FitResult stayed = fitMaterials({obs}, record, {broad}, options);
+    expectFinite(stayed);
+    ASSERT_EQ(stayed.rounds.size(), 4u);
+    for (int k = 0; k < 3; ++k) EXPECT_FALSE(stayed.rounds[std::size_t(k)].probe) << k;
+    ASSERT_TRUE(stayed.rounds[3].probe);
+    EXPECT_FALSE(stayed.converged);
+    EXPECT_EQ(stayed.stopReason, "sharper lobe");
+    const MaterialFit& probe = stayed.rounds[3].materials[0];
+    EXPECT_GT(probe.n, 2 * kTruth.n);
+    EXPECT_EQ(stayed.materials[0].n, stayed.rounds[2].materials[0].n);
+    EXPECT_GE(stayed.materials[0].nStd, probe.n - stayed.materials[0].n);
+
+    probeSeesSharper = false;
+    const FitResult back = fitMaterials({obs}, record, {broad}, options);
+    expectFinite(back);
+    ASSERT_EQ(back.rounds.size(), 4u);
+    ASSERT_TRUE(back.rounds[3].probe);
+    EXPECT_FALSE(back.converged);
+    EXPECT_EQ(back.stopReason, "rounds");
+    EXPECT_EQ(back.materials[0].n, back.rounds[2].materials[0].n);
+    EXPECT_LT(back.materials[0].nStd, stayed.materials[0].nStd);
+    EXPECT_LT(back.materials[0].n + back.materials[0].nStd, kProbeFactor * back.materials[0].n);
+
+    const PhongMaterial sharp = material(Color3(0.3, 0.3, 0.3), Color3(0.2, 0.2, 0.2), 1000);
+    const FitResult tested = fitMaterials({obs}, record, {sharp}, options);
+    expectFinite(tested);
+    ASSERT_EQ(tested.rounds.size(), 4u);
+    EXPECT_FALSE(tested.rounds[3].probe);
+    EXPECT_FALSE(tested.converged);
+
+    // Under delta lights alone, whose highlight is replayed at any lobe, it adds paths too.
+    options.extendedLights = false;
+    const FitResult delta = fitMaterials({obs}, record, {broad}, options);
+    ASSERT_EQ(delta.rounds.size(), 4u);
+    EXPECT_FALSE(delta.rounds[3].probe);
+}
+
 // Each recording an unbiased but noisy estimate of `scene`: constants times 1 + noise of relative
 // standard deviation `sigma` (over the square root of the recorder's path factor if `averaged`, as
 // that many recordings' mean), drawn from seed + the recording's index.

@@ -147,15 +147,15 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
     v.imagePath = spec.imagePath;
     Scene scene = loadScene(v.scenePath, in.defines);
     v.fittedBsdfs = fittedBsdfs(scene, v.scenePath, in.materials);
+    v.deltaLights =
+        std::none_of(scene.shapes.begin(), scene.shapes.end(),
+                     [](const ShapeDesc& s) { return bool(s.areaRadiance); }) &&
+        std::all_of(scene.emitters.begin(), scene.emitters.end(), [](const EmitterDesc& e) {
+            return e.type == EmitterDesc::Type::Point || e.type == EmitterDesc::Type::Directional;
+        });
     if (directLightIsExact(scene)) {
         v.maxDepth = 2;
-        v.deltaLightsOnly =
-            std::none_of(scene.shapes.begin(), scene.shapes.end(),
-                         [](const ShapeDesc& s) { return bool(s.areaRadiance); }) &&
-            std::all_of(scene.emitters.begin(), scene.emitters.end(), [](const EmitterDesc& e) {
-                return e.type == EmitterDesc::Type::Point ||
-                       e.type == EmitterDesc::Type::Directional;
-            });
+        v.deltaLightsOnly = v.deltaLights;
         v.depthNote =
             "indirect bounces (one convex object, and emitters that reflect nothing: direct "
             "light is exact, depth 2)";
@@ -402,6 +402,8 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
     };
     o.recordingFollowsEstimate = !std::all_of(problem.views.begin(), problem.views.end(),
                                               [](const SceneView& v) { return v.deltaLightsOnly; });
+    o.extendedLights = !std::all_of(problem.views.begin(), problem.views.end(),
+                                    [](const SceneView& v) { return v.deltaLights; });
     return fitMaterials(observations, record, problem.start, o);
 }
 

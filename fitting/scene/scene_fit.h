@@ -47,6 +47,9 @@ struct SceneView {
     // Delta lights seen directly: no recorded direction depends on the estimate
     // (FitOptions::recordingFollowsEstimate).
     bool deltaLightsOnly = false;
+    // Point and directional lights only, whatever else the scene holds
+    // (FitOptions::extendedLights).
+    bool deltaLights = false;
     Observation observation;
     std::size_t clipped = 0, masked = 0, nonFinite = 0;
     // Per pixel: 1 where the ray through its centre first meets a fitted material
