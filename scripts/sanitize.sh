@@ -38,9 +38,9 @@
 #   minutes): RoundTrip.TungstenRendersOfTheQuadLitSphereAreRecovered (three quad-lit fits on
 #   Tungsten's images: Tungsten's EXR and the area light's rounds run under ASan in
 #   RoundTrip.TungstenPointLitSharpLobeIsRecovered and ...LobeHeldByPixelsAtTheirPathCapEndsThere)
-#   and RoundTrip.ClimbThatSettlesShortOfTheLobeCoversItsDrift (two climbs over a sampled area
-#   light; the precision target's growth and the drift's widening run in the fitter tests, e.g.
-#   Fitter.RoundsThatDoNotSettleRecordMorePaths).
+#   and RoundTrip.ClimbThatSettlesShortOfTheLobeHasItsSharperSideProbed (two climbs over a
+#   sampled area light; the precision target's growth, the drift's widening and the last round's
+#   probe run in the fitter tests, e.g. Fitter.RoundsThatDoNotSettleRecordMorePaths).
 # - the two ringed round trips at 1024 spp (session 47: 297 s and 94 s under ASan, the run 2914 s):
 #   RoundTrip.RingsSayASubPixelLobesExponentIsNotHeld (three fits, most of it their renders) and
 #   ...GrownRoundsOfRingedRecordingsKeepTheRingsPrecision: ringed rounds over the 40-degree light
@@ -101,7 +101,7 @@ slow+='|Synth.ResumesAfterSigintWithTheSameFilesAsAnUninterruptedRun'
 slow+='|ImageNoise.APixelThatHoldsTheLobeBringsItsNoiseIntoTheStandardErrors'
 slow+='|FitCommand.DemoRendersFitsBackAndPrintsTheErrors'
 slow+='|RoundTrip.TungstenRendersOfTheQuadLitSphereAreRecovered'
-slow+='|RoundTrip.ClimbThatSettlesShortOfTheLobeCoversItsDrift'
+slow+='|RoundTrip.ClimbThatSettlesShortOfTheLobeHasItsSharperSideProbed'
 slow+='|RoundTrip.RingsSayASubPixelLobesExponentIsNotHeld'
 slow+='|RoundTrip.GrownRoundsOfRingedRecordingsKeepTheRingsPrecision'
 slow+='|LightRings.TheLobeMatchesAPolarGridFromN1To1e6'
