@@ -240,9 +240,11 @@ TEST(Determinism, SameSeedSameImageWhateverTheThreadCount) {
     }
 }
 
-// Pixels left out of a render (a fit's comparison renders only the pixels it compares) take no
-// sample and read 0; the others are the full render's to the bit, their samples being keyed by the
-// pixel. A mask of the wrong size is refused.
+// Pixels left out of a render (a fit's comparison renders only the pixels it compares, its
+// rendered noise only the pixels that hold a parameter) take no sample and read 0; the others are
+// the full render's to the bit, their samples being keyed by the pixel, with a box filter or a
+// Gaussian one (importance-sampled: each sample is its own pixel's, none reaches a neighbour). A
+// mask of the wrong size is refused.
 TEST(Determinism, PixelsLeftOutTakeNoSampleAndTheOthersAreTheFullRenders) {
     PhongMaterial m;
     m.kd = Color3(0.4, 0.5, 0.6);
@@ -250,27 +252,32 @@ TEST(Determinism, PixelsLeftOutTakeNoSampleAndTheOthersAreTheFullRenders) {
     m.n = 50;
     Scene scene = sphereScene(m, 8);
     scene.sensor.width = scene.sensor.height = 24;
-    const Renderer renderer(scene);
     RenderOptions options;
     options.spp = 4;
     options.seed = 3;
     options.quiet = true;
-    const RenderResult full = renderer.render(options);
     std::vector<std::uint8_t> rendered(24 * 24, 0);
     for (std::size_t p = 0; p < rendered.size(); p += 3) rendered[p] = 1;
-    options.rendered = rendered;
-    const RenderResult part = renderer.render(options);
-    EXPECT_EQ(part.stats.samples, full.stats.samples / 3);
-    for (std::size_t p = 0; p < rendered.size(); ++p) {
-        EXPECT_EQ(part.sampleCount[p], rendered[p] ? 4u : 0u) << "pixel " << p;
-        for (int c = 0; c < 3; ++c)
-            EXPECT_EQ(part.rgb[3 * p + c], rendered[p] ? full.rgb[3 * p + c] : 0.0f)
-                << "pixel " << p;
+    for (const SensorDesc::Filter filter :
+         {SensorDesc::Filter::Box, SensorDesc::Filter::Gaussian}) {
+        scene.sensor.filter = filter;
+        const Renderer renderer(scene);
+        options.rendered = {};
+        const RenderResult full = renderer.render(options);
+        options.rendered = rendered;
+        const RenderResult part = renderer.render(options);
+        EXPECT_EQ(part.stats.samples, full.stats.samples / 3);
+        for (std::size_t p = 0; p < rendered.size(); ++p) {
+            EXPECT_EQ(part.sampleCount[p], rendered[p] ? 4u : 0u) << "pixel " << p;
+            for (int c = 0; c < 3; ++c)
+                EXPECT_EQ(part.rgb[3 * p + c], rendered[p] ? full.rgb[3 * p + c] : 0.0f)
+                    << "pixel " << p;
+        }
+        EXPECT_GT(*std::max_element(part.rgb.begin(), part.rgb.end()), 0.0f);
     }
-    EXPECT_GT(*std::max_element(part.rgb.begin(), part.rgb.end()), 0.0f);
     const std::vector<std::uint8_t> wrong(10, 1);
     options.rendered = wrong;
-    EXPECT_EQ(test::errorOf([&] { renderer.render(options); }),
+    EXPECT_EQ(test::errorOf([&] { Renderer(scene).render(options); }),
               "render: 10 rendered-pixel flags given for a 24x24 film");
 }
 

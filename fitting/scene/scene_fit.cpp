@@ -254,8 +254,9 @@ int imageSpp(const SceneView& v, const SceneRecording& recording) {
 
 // FitOptions::renderedNoise for view `v` (its fit covering `window`): the listed pixels rendered
 // kNoiseRenders times at `spp` paths a pixel in the scene's sampler, each with its own seed, and
-// their values' covariance over the renders. Only they and the pixels their filter reaches into
-// them are traced.
+// their values' covariance over the renders. Only they are traced: a pixel's value is its own
+// samples' (a Gaussian filter is importance-sampled, filmPosition), drawn from the seed and the
+// pixel alone.
 constexpr int kNoiseRenders = 16;
 
 std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow& window, int spp,
@@ -266,16 +267,13 @@ std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow&
     for (std::size_t s = 0; s < theta.size() && s < v.fittedBsdfs.size(); ++s)
         scene.bsdfs[v.fittedBsdfs[s]].params = theta[s];
     const SensorDesc& film = scene.sensor;
-    const int reach = filterReach(film);
     std::vector<std::uint8_t> traced(std::size_t(film.width) * std::size_t(film.height), 0);
     std::vector<std::size_t> at;  // each pixel's index on the whole film
     for (std::uint32_t p : pixels) {
         const int x = window.x0 + int(p % std::uint32_t(window.width)),
                   y = window.y0 + int(p / std::uint32_t(window.width));
         at.push_back(std::size_t(y) * std::size_t(film.width) + std::size_t(x));
-        for (int yy = std::max(0, y - reach); yy <= std::min(film.height - 1, y + reach); ++yy)
-            for (int xx = std::max(0, x - reach); xx <= std::min(film.width - 1, x + reach); ++xx)
-                traced[std::size_t(yy) * std::size_t(film.width) + std::size_t(xx)] = 1;
+        traced[at.back()] = 1;
     }
     const Renderer renderer(std::move(scene));
     RenderOptions options;
