@@ -100,17 +100,44 @@ TileLoop Renderer::tileLoop(const PathIntegrator& integrator, const FilmWindow& 
                     .stop = interruptRequested};
 }
 
+FilmWindow Renderer::filmWindow(const FilmWindow& window, const char* command) const {
+    if (window.width == 0) return {0, 0, camera_.width(), camera_.height()};
+    if (window.x0 < 0 || window.y0 < 0 || window.width <= 0 || window.height <= 0 ||
+        window.x0 + window.width > camera_.width() || window.y0 + window.height > camera_.height())
+        throw Error(fmt::format("{}: window {}x{} at ({}, {}) is not within the {}x{} film",
+                                command, window.width, window.height, window.x0, window.y0,
+                                camera_.width(), camera_.height()));
+    return window;
+}
+
+std::vector<PhongMaterial> Renderer::materialsWith(const std::vector<int>& bsdfs,
+                                                   const std::vector<PhongMaterial>& params,
+                                                   const char* command) const {
+    if (bsdfs.size() != params.size())
+        throw Error(fmt::format("{}: one material per bsdf replaced is needed", command));
+    std::vector<PhongMaterial> materials;
+    for (const BsdfDesc& b : scene_.bsdfs) materials.push_back(b.params);
+    for (std::size_t k = 0; k < bsdfs.size(); ++k) {
+        if (bsdfs[k] < 0 || std::size_t(bsdfs[k]) >= materials.size())
+            throw Error(fmt::format("{}: bsdf {} is not one of the scene's {}", command, bsdfs[k],
+                                    materials.size()));
+        materials[std::size_t(bsdfs[k])] = params[k];
+    }
+    return materials;
+}
+
 RenderResult Renderer::render(const RenderOptions& options) const {
     const int spp = options.spp > 0 ? options.spp : scene_.sensor.sampleCount;
     const auto sampler = makePhongSampler<double>(options.sampler);
-    std::vector<PhongMaterial> materials;
-    for (const BsdfDesc& b : scene_.bsdfs) materials.push_back(b.params);
+    const std::vector<PhongMaterial> materials =
+        materialsWith(options.bsdfs, options.bsdfParams, "render");
     const PathIntegrator integrator(
         scene_, *geometry_, *lights_, materials, std::vector<int>(materials.size(), -1), *sampler,
         *sampler, {effectiveMaxDepth(options.maxDepth), scene_.integrator.rrDepth, options.mis});
 
-    const int width = camera_.width(), height = camera_.height();
-    const std::size_t pixels = std::size_t(width) * std::size_t(height);
+    const FilmWindow window = filmWindow(options.window, "render");
+    const int width = window.width, height = window.height;
+    const std::size_t pixels = window.pixels();
     if (!options.rendered.empty())
         checkPerPixel("render", options.rendered.size(), "rendered-pixel flags", width, height);
     const std::size_t renderedPixels =
@@ -120,8 +147,8 @@ RenderResult Renderer::render(const RenderOptions& options) const {
                                         [](std::uint8_t r) { return r != 0; }));
     RgbFilm film(width, height, spp, options.rendered);
     Progress progress("render", std::uint64_t(spp) * renderedPixels, "samples", options.quiet);
-    TileLoop loop = tileLoop(integrator, {0, 0, width, height}, options.pixelSampler, options.seed,
-                             options.threads, spp);
+    TileLoop loop =
+        tileLoop(integrator, window, options.pixelSampler, options.seed, options.threads, spp);
     loop.progress = &progress;
     RenderStats stats = traceTiles(loop, film);
     progress.finish();
@@ -151,15 +178,11 @@ std::vector<int> Renderer::bsdfSeen(int threads) const {
 }
 
 RecordResult Renderer::record(const RecordOptions& options) const {
-    if (options.fittedBsdfs.size() != options.theta0.size())
-        throw Error("record: one starting material per fitted bsdf is needed");
-    std::vector<PhongMaterial> materials;
-    for (const BsdfDesc& b : scene_.bsdfs) materials.push_back(b.params);
+    const std::vector<PhongMaterial> materials =
+        materialsWith(options.fittedBsdfs, options.theta0, "record");
     std::vector<int> slots(materials.size(), -1);
-    for (std::size_t k = 0; k < options.fittedBsdfs.size(); ++k) {
-        slots[options.fittedBsdfs[k]] = int(k);
-        materials[options.fittedBsdfs[k]] = options.theta0[k];
-    }
+    for (std::size_t k = 0; k < options.fittedBsdfs.size(); ++k)
+        slots[std::size_t(options.fittedBsdfs[k])] = int(k);
     const auto sampler = makePhongSampler<double>(options.sampler);
     const DefensiveSampler defensive(options.defensive);
     // Rings only where the recording is direct light alone: with indirect light the fit's n also
@@ -173,14 +196,7 @@ RecordResult Renderer::record(const RecordOptions& options) const {
     const PathIntegrator integrator(scene_, *geometry_, *lights_, materials, slots, *sampler,
                                     defensive, {maxDepth, scene_.integrator.rrDepth, true, ringed});
 
-    const FilmWindow window = options.window.width > 0
-                                  ? options.window
-                                  : FilmWindow{0, 0, camera_.width(), camera_.height()};
-    if (window.x0 < 0 || window.y0 < 0 || window.width <= 0 || window.height <= 0 ||
-        window.x0 + window.width > camera_.width() || window.y0 + window.height > camera_.height())
-        throw Error(fmt::format("record: window {}x{} at ({}, {}) is not within the {}x{} film",
-                                window.width, window.height, window.x0, window.y0, camera_.width(),
-                                camera_.height()));
+    const FilmWindow window = filmWindow(options.window, "record");
     // Paths per pixel, fixed before tracing rather than decided by the pixel's own samples, so
     // every pixel's estimate stays unbiased.
     const int width = window.width, height = window.height;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "camera.h"
+#include "film_window.h"
 #include "lights.h"
 #include "path_set.h"
 #include "render_stats.h"
@@ -32,10 +33,17 @@ struct RenderOptions {
     int maxDepth = -2;  // -2: the scene's; otherwise as in Mitsuba (-1 unbounded)
     bool mis = true;
     bool quiet = false;  // no progress output
-    // Per pixel (width x height): 0 traces no sample there (mean 0, sample count 0), as for the
+    // The part of the film rendered (width 0: all of it); `rendered` and the result are the
+    // window's size, pixels numbered from its corner (film_window.h).
+    FilmWindow window;
+    // Per pixel (of the window): 0 traces no sample there (mean 0, sample count 0), as for the
     // pixels a fit's comparison greys out; empty: every pixel. Viewed, not copied: the caller keeps
     // it alive through render().
     std::span<const std::uint8_t> rendered;
+    // Scene bsdf indices rendered with `bsdfParams` (one each) instead of the scene's own, as a
+    // recording's fittedBsdfs and theta0: a fit renders at its estimate without a scene of its own.
+    std::vector<int> bsdfs;
+    std::vector<PhongMaterial> bsdfParams;
 };
 
 struct RenderResult {
@@ -112,6 +120,14 @@ public:
     std::vector<int> bsdfSeen(int threads) const;
 
 private:
+    // `window` checked against the film; width 0: the whole film. `command` names the caller.
+    FilmWindow filmWindow(const FilmWindow& window, const char* command) const;
+
+    // The scene's bsdf parameters, those of `bsdfs` replaced by `params` (one each).
+    std::vector<PhongMaterial> materialsWith(const std::vector<int>& bsdfs,
+                                             const std::vector<PhongMaterial>& params,
+                                             const char* command) const;
+
     // The tile loop over this scene's film; `pixelSampler` unset: the scene's.
     TileLoop tileLoop(const PathIntegrator& integrator, const FilmWindow& window,
                       std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed, int threads,

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <new>
 #include <string>
 
@@ -111,32 +112,36 @@ namespace phongfit {
 namespace {
 
 const std::string kCornell = std::string(PHONGFIT_SCENES_DIR) + "/cornell_phong.xml";
+const std::string kSpherePoint = std::string(PHONGFIT_SCENES_DIR) + "/sphere_point.xml";
 
 struct FitState {
     double perUsedPixel;  // bytes the fit allocated at its peak beyond the problem and its paths
     std::size_t pixelsUsed;
 };
 
-// The Cornell demo at 320x320 fitted from the demo's start for two rounds: what the fit allocates
-// beyond the problem it was given and the paths of one round.
-FitState fitState(bool keepIndirect) {
-    const std::map<std::string, std::string> defines = {
-        {"width", "320"}, {"height", "320"}, {"spp", "16"}};
+// `scene` rendered at 16 paths a pixel with `defines`, fitted from kd 0.25, ks 0.45 and n `startN`
+// for two rounds: what the fit allocates beyond the problem it was given and the paths of one
+// round. With `imageSpp` -1 the fit knows the image's 16 paths and renders anew the pixels that
+// hold a parameter (FitOptions::renderedNoise); 0 tells it the image has no noise.
+FitState fitState(const std::string& scene, std::map<std::string, std::string> defines,
+                  double startN, bool keepIndirect, int imageSpp = -1) {
+    defines["spp"] = "16";
     const std::filesystem::path image =
         std::filesystem::temp_directory_path() /
         ("phongfit_fit_memory_" + std::to_string(::getpid()) + ".exr");
-    test::renderToExr(kCornell, defines, 16, image.string());
+    test::renderToExr(scene, defines, 16, image.string());
     SceneFitInputs inputs;
-    inputs.views = {{kCornell, image.string()}};
+    inputs.views = {{scene, image.string()}};
     inputs.materials = {"sphere"};
     inputs.defines = defines;
     inputs.kd = Color3::Constant(0.25);
     inputs.ks = Color3::Constant(0.45);
-    inputs.n = 300;
+    inputs.n = startN;
     inputs.keepIndirect = keepIndirect;
     const SceneFitProblem problem = loadSceneFit(inputs);
     SceneRecording recording;
     recording.spp = 4;
+    recording.imageSpp = imageSpp;
     FitOptions options;
     options.maxRounds = 2;
     const std::int64_t before = allocated.load();
@@ -154,9 +159,14 @@ FitState fitState(bool keepIndirect) {
     return {perPixel, result.pixelsUsed};
 }
 
+// The Cornell demo at 320x320 from the demo's start.
+FitState cornellFitState(bool keepIndirect) {
+    return fitState(kCornell, {{"width", "320"}, {"height", "320"}}, 300, keepIndirect);
+}
+
 // Every pixel sees the sphere through some bounce: with the walls' pixels kept, all are used.
 TEST(FitMemory, StateBeyondImagesAndPathsIsAtMostTheBoundPerUsedPixel) {
-    const FitState s = fitState(true);
+    const FitState s = cornellFitState(true);
     EXPECT_GT(s.pixelsUsed, 80000u);
     EXPECT_LE(s.perUsedPixel, double(kStateBytesPerPixel));
 }
@@ -166,9 +176,24 @@ TEST(FitMemory, StateBeyondImagesAndPathsIsAtMostTheBoundPerUsedPixel) {
 // them (film_window.h), not the film: 185 bytes a used pixel beyond 2.9 MB of paths. Over the
 // whole film: 806 beyond 6.6 MB (the two sets' per-pixel arrays counted with the paths).
 TEST(FitMemory, StateStaysWithinTheBoundWhenMostPixelsAreLeftOut) {
-    const FitState s = fitState(false);
+    const FitState s = cornellFitState(false);
     EXPECT_LT(s.pixelsUsed, 20000u);
     EXPECT_LE(s.perUsedPixel, double(kStateBytesPerPixel));
+}
+
+// A highlight smaller than a pixel (the point-lit sphere at n 30000, 160x160): a pixel or two hold
+// ks and n, and the second round renders them anew 16 times. Each pixel is rendered alone, by the
+// view's renderer, so the renders add nothing to the fit's peak: 201.8 bytes a used pixel beyond
+// the paths with them and without (the image taken as noise-free, no pixel rendered anew). When
+// each render copied the scene and filled a film of the view's size, the fit held 457.6 with them.
+TEST(FitMemory, PixelsRenderedAnewAddNothingToThePeak) {
+    const std::map<std::string, std::string> defines = {
+        {"width", "160"}, {"height", "160"}, {"n", "30000"}, {"ks", "0.1"}};
+    const FitState rendered = fitState(kSpherePoint, defines, 3000, false);
+    const FitState noiseless = fitState(kSpherePoint, defines, 3000, false, 0);
+    EXPECT_GT(rendered.pixelsUsed, 5000u);
+    EXPECT_EQ(rendered.pixelsUsed, noiseless.pixelsUsed);
+    EXPECT_LE(rendered.perUsedPixel, noiseless.perUsedPixel + 1);
 }
 
 // A recording's peak on the resident set (memory_info.h) stays near one copy of its paths: the set

@@ -281,6 +281,58 @@ TEST(Determinism, PixelsLeftOutTakeNoSampleAndTheOthersAreTheFullRenders) {
               "render: 10 rendered-pixel flags given for a 24x24 film");
 }
 
+// A window of the film renders its pixels as the whole film does, to the bit (their samples are
+// keyed by the pixel's index on the whole film), and a bsdf rendered with other parameters renders
+// as the scene that holds them: what a fit's noise renders of a few pixels at its estimate rely on.
+// A window off the film, and parameters that are not one per listed bsdf of the scene, are refused.
+TEST(Determinism, AWindowAndReplacedParametersRenderAsTheWholeSceneWithThem) {
+    PhongMaterial m;
+    m.kd = Color3(0.4, 0.5, 0.6);
+    m.ks = Color3::Constant(0.3);
+    m.n = 50;
+    PhongMaterial other = m;
+    other.kd = Color3(0.2, 0.1, 0.3);
+    other.ks = Color3(0.5, 0.6, 0.4);
+    other.n = 400;
+    Scene scene = sphereScene(m, 24);
+    scene.sensor.filter = SensorDesc::Filter::Gaussian;
+    Scene withOther = scene;
+    withOther.bsdfs[0].params = other;
+    RenderOptions options;
+    options.spp = 4;
+    options.seed = 5;
+    options.quiet = true;
+    const RenderResult full = Renderer(withOther).render(options);
+    const Renderer renderer(scene);
+    options.window = {7, 9, 5, 3};
+    options.bsdfs = {0};
+    options.bsdfParams = {other};
+    const RenderResult part = renderer.render(options);
+    ASSERT_EQ(part.width, 5);
+    ASSERT_EQ(part.height, 3);
+    ASSERT_EQ(part.rgb.size(), 3u * 5 * 3);
+    EXPECT_EQ(part.stats.samples, 4u * 5 * 3);
+    for (int y = 0; y < 3; ++y)
+        for (int x = 0; x < 5; ++x)
+            for (int c = 0; c < 3; ++c)
+                EXPECT_EQ(part.rgb[3 * (y * 5 + x) + c], full.rgb[3 * ((9 + y) * 24 + 7 + x) + c])
+                    << x << ", " << y;
+    options.bsdfs = {};
+    options.bsdfParams = {};
+    EXPECT_NE(renderer.render(options).rgb, part.rgb);  // the scene's own parameters
+    options.bsdfParams = {other};
+    options.bsdfs = {1};
+    EXPECT_EQ(test::errorOf([&] { renderer.render(options); }),
+              "render: bsdf 1 is not one of the scene's 1");
+    options.bsdfs = {0, 0};
+    EXPECT_EQ(test::errorOf([&] { renderer.render(options); }),
+              "render: one material per bsdf replaced is needed");
+    options.bsdfs = {0};
+    options.window = {20, 9, 5, 3};
+    EXPECT_EQ(test::errorOf([&] { renderer.render(options); }),
+              "render: window 5x3 at (20, 9) is not within the 24x24 film");
+}
+
 // At the last vertex that can reflect (here the only one: depth 2), a diffuse surface is lit by
 // light sampling alone: one camera ray and one shadow ray a sample, no BRDF-sampled ray, and the
 // closed-form irradiance under a rectangle light parallel to the floor, centred above the point

@@ -254,28 +254,16 @@ int imageSpp(const SceneView& v, const SceneRecording& recording) {
 
 // FitOptions::renderedNoise for view `v` (its fit covering `window`): the listed pixels rendered
 // kNoiseRenders times at `spp` paths a pixel in the scene's sampler, each with its own seed, and
-// their values' covariance over the renders. Only they are traced: a pixel's value is its own
-// samples' (a Gaussian filter is importance-sampled, filmPosition), drawn from the seed and the
-// pixel alone.
+// their values' covariance over the renders. Each is traced alone, in a window of its own, by the
+// view's renderer at `theta`: a pixel's value is its own samples' (a Gaussian filter is
+// importance-sampled, filmPosition), drawn from the seed and the pixel alone, and the fit's
+// memory bound leaves no room for a film or a scene of their own.
 constexpr int kNoiseRenders = 16;
 
 std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow& window, int spp,
                                            const SceneRecording& recording,
                                            const std::vector<std::uint32_t>& pixels,
                                            const std::vector<PhongMaterial>& theta) {
-    Scene scene = v.renderer->scene();
-    for (std::size_t s = 0; s < theta.size() && s < v.fittedBsdfs.size(); ++s)
-        scene.bsdfs[v.fittedBsdfs[s]].params = theta[s];
-    const SensorDesc& film = scene.sensor;
-    std::vector<std::uint8_t> traced(std::size_t(film.width) * std::size_t(film.height), 0);
-    std::vector<std::size_t> at;  // each pixel's index on the whole film
-    for (std::uint32_t p : pixels) {
-        const int x = window.x0 + int(p % std::uint32_t(window.width)),
-                  y = window.y0 + int(p / std::uint32_t(window.width));
-        at.push_back(std::size_t(y) * std::size_t(film.width) + std::size_t(x));
-        traced[at.back()] = 1;
-    }
-    const Renderer renderer(std::move(scene));
     RenderOptions options;
     options.spp = spp;
     options.pixelSampler = v.renderedAs.pixelSampler;
@@ -284,22 +272,25 @@ std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow&
     options.threads = recording.threads;
     options.maxDepth = v.maxDepth;
     options.quiet = true;
-    options.rendered = traced;
-    std::vector<Eigen::Vector3d> sum(pixels.size(), Eigen::Vector3d::Zero());
-    std::vector<Eigen::Matrix3d> squares(pixels.size(), Eigen::Matrix3d::Zero());
-    for (int k = 0; k < kNoiseRenders; ++k) {
-        options.seed = recording.seed * 7919 + 104729 + std::uint64_t(k);
-        const RenderResult r = renderer.render(options);
-        for (std::size_t i = 0; i < pixels.size(); ++i) {
-            const Eigen::Vector3d c(r.rgb[3 * at[i]], r.rgb[3 * at[i] + 1], r.rgb[3 * at[i] + 2]);
-            sum[i] += c;
-            squares[i] += c * c.transpose();
-        }
-    }
+    const std::size_t fitted = std::min(theta.size(), v.fittedBsdfs.size());
+    options.bsdfs.assign(v.fittedBsdfs.begin(), v.fittedBsdfs.begin() + std::ptrdiff_t(fitted));
+    options.bsdfParams.assign(theta.begin(), theta.begin() + std::ptrdiff_t(fitted));
     std::vector<Eigen::Matrix3d> covariance;
-    for (std::size_t i = 0; i < pixels.size(); ++i)
-        covariance.push_back((squares[i] - sum[i] * sum[i].transpose() / kNoiseRenders) /
+    const auto width = std::uint32_t(window.width);
+    for (std::uint32_t p : pixels) {
+        options.window = {window.x0 + int(p % width), window.y0 + int(p / width), 1, 1};
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        Eigen::Matrix3d squares = Eigen::Matrix3d::Zero();
+        for (int k = 0; k < kNoiseRenders; ++k) {
+            options.seed = recording.seed * 7919 + 104729 + std::uint64_t(k);
+            const RenderResult r = v.renderer->render(options);
+            const Eigen::Vector3d c(r.rgb[0], r.rgb[1], r.rgb[2]);
+            sum += c;
+            squares += c * c.transpose();
+        }
+        covariance.push_back((squares - sum * sum.transpose() / kNoiseRenders) /
                              (kNoiseRenders - 1));
+    }
     return covariance;
 }
 
