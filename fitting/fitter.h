@@ -150,8 +150,9 @@ struct FitOptions {
     bool recordingFollowsEstimate = true;
     // Whether some light is seen over a solid angle (an area light, an environment): a lobe's
     // direct highlight is then the light's image, which paths recorded at a broader lobe rarely
-    // reach, where a delta light's is replayed at any lobe. Only then does a fit whose rounds end
-    // unsettled spend its last round probing an untested sharper side (sharperSideUntested).
+    // reach, where a delta light's is replayed at any lobe. Only then are lobes probed sharper
+    // (sharper_probe.h): a converged one, and the untested sharper side of rounds that end
+    // unsettled (sharperSideUntested).
     bool extendedLights = true;
     // Converged when, between the estimate a round recorded at and the one it solved for, every
     // free kd, ks changed by less than tolerance * max(|value|, 0.01) and log n by less than

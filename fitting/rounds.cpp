@@ -292,6 +292,9 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // Each round records at the last estimate, so what it sees depends on it (scans of the
     // broader side, strides and probes apply).
     const bool followsEstimate = rerecords && options.recordingFollowsEstimate;
+    // Lobes are probed sharper only where some light is seen over a solid angle: a delta light's
+    // direct highlight is replayed at any lobe (FitOptions::extendedLights).
+    const bool probesSharper = followsEstimate && options.extendedLights;
     std::optional<FitResult> probed;  // a converged estimate awaiting its probe round
     // The converged estimate the last round's probe did not come back to, widened to the probe:
     // what the fit reports if it ends before another round.
@@ -514,7 +517,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         if (result.converged) {
             const Settled next =
                 settle<P>(result, out, params, options, pooledFactor, !exact,
-                          followsEstimate && !exact, round + 1 == maxRounds, theta.materials);
+                          probesSharper && !exact, round + 1 == maxRounds, theta.materials);
             if (next.stop) break;
             sharper = next.sharper;
             if (sharper.empty() && round + 1 < maxRounds) {
@@ -525,7 +528,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 importanceTaken = true;
                 if (mostPathGain(importance, firstPaths, recordFactor) < kLeastPathGain) {
                     result.stopReason = "path cap";
-                    if (followsEstimate && allResolved(out.materials))
+                    if (probesSharper && allResolved(out.materials))
                         sharper = sharperProbe(out.materials, theta.materials);
                     if (sharper.empty()) break;
                     importanceTaken = false;
@@ -540,9 +543,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     joinable ? recordFactor * growth : std::max(pathFactor, recordFactor * growth);
                 growth = pathFactor / recordFactor;
             }
-        } else if (round >= 2 && round + 2 == maxRounds && followsEstimate &&
-                   options.extendedLights && !exact && !r.probe && !atStride &&
-                   allResolved(out.materials) &&
+        } else if (round >= 2 && round + 2 == maxRounds && probesSharper && !exact && !r.probe &&
+                   !atStride && allResolved(out.materials) &&
                    sharperSideUntested(out.materials, sharpestRecorded)) {
             // The rounds end next round with an estimate that has not settled, once it has
             // travelled from the start, its lobe's sharper side untested: the last round probes it
