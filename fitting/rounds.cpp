@@ -261,6 +261,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // Counted from what the process holds, not what its heap kept of what it freed (as after
     // each round below).
     malloc_trim(0);
+    residentProgram();
     resetPeakResident();
     const std::size_t residentAtStart = residentBytes(), filesAtStart = fileResidentBytes();
     const int threads = options.threads > 0 ? options.threads

@@ -12,6 +12,12 @@ std::size_t residentBytes();
 // files mapped for reading, which the kernel brings in as they are first touched and may drop.
 std::size_t fileResidentBytes();
 
+// Makes every page of the program's own executable file resident (its code and constant data),
+// so that the code a fit first runs is not counted as the fit's memory: a fit's
+// memory is then its data, exactly, where the program's pages taken in meanwhile could only be
+// bounded (docs/design/fitter.md, "Memory"). Libraries are left as they are.
+void residentProgram();
+
 // The most the process has held since it started or since resetPeakResident() (VmHWM), 0 where
 // it cannot be read.
 std::size_t peakResidentBytes();
