@@ -11,10 +11,11 @@
 #include "interrupt.h"
 
 int main(int argc, char** argv) {
-    // Buffers of a megabyte or more (recorded paths, a fit's per-pixel state) are mapped and
-    // unmapped whole: glibc's adaptive threshold would serve them from the heap after the first is
-    // freed, and keep them resident once freed (docs/design/fitter.md, "Memory").
-    mallopt(M_MMAP_THRESHOLD, 1 << 20);
+    // Buffers of 64 kB or more (recorded paths, a fit's per-pixel state) are mapped and unmapped
+    // whole: glibc's adaptive threshold would serve them from the heap after the first is freed,
+    // and keep them resident once freed; a threshold of a megabyte left a small fit's per-pixel
+    // arrays in the heap, freed ones resident among live ones (docs/design/fitter.md, "Memory").
+    mallopt(M_MMAP_THRESHOLD, 1 << 16);
     CLI::App app{
         "phongfit: recover Modified Phong BRDF parameters from images, and render with them"};
     app.require_subcommand(1);
