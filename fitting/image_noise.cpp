@@ -168,10 +168,12 @@ double noiseScale(std::vector<PixelNoise> pixels) {
         pixels.begin(), middle, pixels.end(),
         [](const PixelNoise& a, const PixelNoise& b) { return a.variance < b.variance; });
     const double least = pixels.empty() ? 0.0 : middle->variance;
+    const auto counted = [&](const PixelNoise& p) { return p.variance >= least && p.variance > 0; };
     const auto medianOver = [&](auto ratio) {
         std::vector<double> values;
+        values.reserve(std::size_t(std::count_if(pixels.begin(), pixels.end(), counted)));
         for (const PixelNoise& p : pixels)
-            if (p.variance >= least && p.variance > 0) values.push_back(ratio(p) / p.variance);
+            if (counted(p)) values.push_back(ratio(p) / p.variance);
         return medianOf(values);
     };
     const double product = std::max(

@@ -44,25 +44,33 @@ PathSetFilm::PathSetFilm(int width, int height, std::vector<int> paths, std::siz
     : width_(width),
       height_(height),
       paths_(std::move(paths)),
-      background_(paths_.size(), Color3::Zero()),
+      traced_(paths_.size(), kNotTraced),
       kept_(paths_.size(), 0),
       ringed_(ringed),
-      ringedParts_(ringed > 0 ? paths_.size() : 0),
-      tiles_(tiles) {}
+      tiles_(tiles) {
+    std::uint32_t count = 0;
+    for (std::size_t p = 0; p < paths_.size(); ++p)
+        if (paths_[p] > 0) traced_[p] = count++;
+    for (std::uint32_t i = 0; i < count; ++i) {
+        background_.push_back(Color3::Zero());
+        if (ringed > 0) ringedParts_.push_back(RingedPart{});
+    }
+}
 
 PathSetFilm::Sample::Sample(PathSetFilm& film, std::size_t tile, std::uint32_t pixel, int sample)
     : film_(film),
       record_(film.tiles_[tile]),
       pixel_(pixel),
+      at_(film.traced_[pixel]),
       ringed_(std::uint32_t(sample) < film.ringed_),
       scale_(1.0 / film.paths_[pixel]),
       termsBefore_(record_.terms.size()),
       verticesBefore_(record_.vertices.size()),
-      backgroundBefore_(ringed_ ? film.ringedParts_[pixel].background : film.background_[pixel]) {}
+      backgroundBefore_(ringed_ ? film.ringedParts_[at_].background : film.background_[at_]) {}
 
 void PathSetFilm::Sample::add(const Color3& c, std::span<const PathVertex> vertices) {
     if (vertices.empty()) {
-        (ringed_ ? film_.ringedParts_[pixel_].background : film_.background_[pixel_]) += c * scale_;
+        (ringed_ ? film_.ringedParts_[at_].background : film_.background_[at_]) += c * scale_;
         return;
     }
     record_.terms.push_back(PathTerm{pixel_, std::uint32_t(record_.vertices.size()),
@@ -73,7 +81,7 @@ void PathSetFilm::Sample::add(const Color3& c, std::span<const PathVertex> verti
 void PathSetFilm::Sample::keep(const Color3& value) {
     ++film_.kept_[pixel_];
     if (film_.ringed_ == 0) return;
-    RingedPart& part = film_.ringedParts_[pixel_];
+    RingedPart& part = film_.ringedParts_[at_];
     GroupSums& group = ringed_ ? part.ringed : part.sampled;
     const double y = value.mean();
     ++group.kept;
@@ -85,8 +93,7 @@ void PathSetFilm::Sample::keep(const Color3& value) {
 void PathSetFilm::Sample::drop() {
     record_.terms.truncate(termsBefore_);
     record_.vertices.truncate(verticesBefore_);
-    (ringed_ ? film_.ringedParts_[pixel_].background : film_.background_[pixel_]) =
-        backgroundBefore_;
+    (ringed_ ? film_.ringedParts_[at_].background : film_.background_[at_]) = backgroundBefore_;
 }
 
 double PathSetFilm::rescale(std::size_t p) const {
@@ -94,7 +101,7 @@ double PathSetFilm::rescale(std::size_t p) const {
                                                                 : 1.0;
 }
 
-std::vector<std::array<double, 2>> PathSetFilm::groupFactors(PathSet& set) const {
+std::vector<std::array<double, 2>> PathSetFilm::weigh(PathSet& set) {
     const std::size_t pixels = paths_.size();
     const auto keptBoth = [](const RingedPart& part) {
         return part.ringed.kept > 0 && part.sampled.kept > 0;
@@ -102,16 +109,20 @@ std::vector<std::array<double, 2>> PathSetFilm::groupFactors(PathSet& set) const
     // Only ringed recordings whose pixels took more paths than they ring weight any: the others
     // keep rescale's factors, computed as the terms are copied (a vector of them would add 16
     // bytes a pixel to the recording's peak).
-    if (std::none_of(ringedParts_.begin(), ringedParts_.end(), keptBoth)) return {};
+    bool weighted = false;
+    for (std::size_t i = 0; i < ringedParts_.size() && !weighted; ++i)
+        weighted = keptBoth(ringedParts_[i]);
     // A group's variance a path, pooled over the pixel's neighbours within `radius` that kept
     // two of its samples; negative where none did.
     const auto pooled = [&](int x, int y, int radius, const GroupSums RingedPart::*group) {
         double squares = 0, freedom = 0;
         for (int v = std::max(y - radius, 0); v <= std::min(y + radius, height_ - 1); ++v)
             for (int u = std::max(x - radius, 0); u <= std::min(x + radius, width_ - 1); ++u) {
-                const GroupSums& g =
-                    ringedParts_[std::size_t(v) * std::size_t(width_) + std::size_t(u)].*group;
-                if ((u == x && v == y) || g.kept < 2) continue;
+                const std::uint32_t at =
+                    traced_[std::size_t(v) * std::size_t(width_) + std::size_t(u)];
+                if ((u == x && v == y) || at == kNotTraced) continue;
+                const GroupSums& g = ringedParts_[at].*group;
+                if (g.kept < 2) continue;
                 squares += std::max(g.squares - g.sum * g.sum / g.kept, 0.0);
                 freedom += g.kept - 1;
             }
@@ -123,34 +134,65 @@ std::vector<std::array<double, 2>> PathSetFilm::groupFactors(PathSet& set) const
             v = pooled(x, y, radius, group);
         return v;
     };
-    std::vector<std::array<double, 2>> factors(pixels);
-    set.groups.assign(pixels, PathGroups{});
-    for (std::size_t p = 0; p < pixels; ++p) {
-        const RingedPart& part = ringedParts_[p];
-        factors[p] = {rescale(p), rescale(p)};
-        set.groups[p].ringedTerms = part.terms;
-        if (!keptBoth(part)) continue;
-        const int x = int(p % std::size_t(width_)), y = int(p / std::size_t(width_));
-        const double ringedVariance = variance(x, y, &RingedPart::ringed),
-                     sampledVariance = variance(x, y, &RingedPart::sampled);
-        // The ringed mean's weight, by the inverse of the variances of the two means; where a
-        // variance is not known, the ringed mean's (the sampled paths are the ones whose noise
-        // can be far larger).
-        const double a = ringedVariance / part.ringed.kept, b = sampledVariance / part.sampled.kept;
-        const double w = ringedVariance < 0 || sampledVariance < 0 || !(a + b > 0)
-                             ? 1 - kLeastGroupWeight
-                             : std::clamp(b / (a + b), kLeastGroupWeight, 1 - kLeastGroupWeight);
-        const double kept = double(kept_[p]);
-        factors[p] = {paths_[p] * w / part.ringed.kept, paths_[p] * (1 - w) / part.sampled.kept};
-        set.groups[p].ringedScale = float(w * kept / part.ringed.kept);
-        set.groups[p].sampledScale = float((1 - w) * kept / part.sampled.kept);
+    std::vector<std::array<double, 2>> factors(weighted ? ringedParts_.size() : 0);
+    if (weighted) set.groups.assign(pixels, PathGroups{});
+    set.background.resize(pixels);
+    std::vector<std::uint32_t> rowStart(std::size_t(height_), 0);  // each row's first traced pixel
+    std::uint32_t traced = 0;
+    for (int y = 0; y < height_; ++y) {
+        rowStart[std::size_t(y)] = traced;
+        for (std::size_t p = std::size_t(y) * std::size_t(width_);
+             p < std::size_t(y + 1) * std::size_t(width_); ++p) {
+            const std::uint32_t at = traced_[p];
+            if (at == kNotTraced) {
+                set.background[p] = Color<float>::Zero();
+                continue;
+            }
+            ++traced;
+            const RingedPart* part = ringed_ > 0 ? &ringedParts_[at] : nullptr;
+            if (weighted) {
+                factors[at] = {rescale(p), rescale(p)};
+                set.groups[p].ringedTerms = part->terms;
+            }
+            if (weighted && keptBoth(*part)) {
+                const int x = int(p % std::size_t(width_));
+                const double ringedVariance = variance(x, y, &RingedPart::ringed),
+                             sampledVariance = variance(x, y, &RingedPart::sampled);
+                // The ringed mean's weight, by the inverse of the variances of the two means;
+                // where a variance is not known, the ringed mean's (the sampled paths are the
+                // ones whose noise can be far larger).
+                const double a = ringedVariance / part->ringed.kept,
+                             b = sampledVariance / part->sampled.kept;
+                const double w =
+                    ringedVariance < 0 || sampledVariance < 0 || !(a + b > 0)
+                        ? 1 - kLeastGroupWeight
+                        : std::clamp(b / (a + b), kLeastGroupWeight, 1 - kLeastGroupWeight);
+                const double kept = double(kept_[p]);
+                factors[at] = {paths_[p] * w / part->ringed.kept,
+                               paths_[p] * (1 - w) / part->sampled.kept};
+                set.groups[p].ringedScale = float(w * kept / part->ringed.kept);
+                set.groups[p].sampledScale = float((1 - w) * kept / part->sampled.kept);
+            }
+            Color3 background = background_[at] * factor(factors, p, false);
+            if (part != nullptr)
+                background = part->background * factor(factors, p, true) + background;
+            set.background[p] = background.cast<float>();
+        }
+        // No later pixel reads this row's backgrounds, nor pools over rows more than
+        // kMostPoolRadius above the next.
+        background_.releaseBefore(traced);
+        if (y + 1 >= kMostPoolRadius)
+            ringedParts_.releaseBefore(rowStart[std::size_t(y + 1 - kMostPoolRadius)]);
     }
+    background_ = {};
+    ringedParts_ = {};
     return factors;
 }
 
 double PathSetFilm::factor(const std::vector<std::array<double, 2>>& factors, std::size_t p,
                            bool ringed) const {
-    return factors.empty() ? rescale(p) : factors[p][ringed ? 0 : 1];
+    if (factors.empty() || traced_[p] == kNotTraced) return rescale(p);
+    return factors[traced_[p]][ringed ? 0 : 1];
 }
 
 void PathSetFilm::copyRecord(TileRecord& record, PathSet& set, std::vector<std::uint32_t>& nextTerm,
@@ -202,16 +244,7 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
     set.height = height_;
     set.spp = spp;
     set.slots = slots;
-    const std::vector<std::array<double, 2>> factors = groupFactors(set);
-    set.background.resize(pixels);
-    for (std::size_t p = 0; p < pixels; ++p) {
-        Color3 background = background_[p] * factor(factors, p, false);
-        if (ringed_ > 0)
-            background = ringedParts_[p].background * factor(factors, p, true) + background;
-        set.background[p] = background.cast<float>();
-    }
-    background_ = {};
-    ringedParts_ = {};
+    const std::vector<std::array<double, 2>> factors = weigh(set);
     if (std::any_of(kept_.begin(), kept_.end(),
                     [&](std::uint32_t k) { return k != std::uint32_t(spp); }))
         set.pixelPaths = kept_;
@@ -258,12 +291,13 @@ PathSet PathSetFilm::assemble(int spp, int slots) {
 }
 
 double PathSetFilm::peakBytes(std::size_t pixels, double terms, double vertices, bool ringed) {
-    // Per pixel: paths, background and kept count here, the background in double while tracing;
+    // Per pixel: paths, its traced index, background and kept count here, the background in double
+    // while tracing (an upper bound: the pixels that take no paths hold neither);
     // background, pixelStart and two cursors in assembly; with ringed samples, their part, the
     // terms' two factors and the set's groups. Terms and vertices: once in the tiles' records,
     // once in the set.
     const double perPixel =
-        sizeof(int) + sizeof(Color3) + sizeof(std::uint32_t) + sizeof(Color<float>) +
+        sizeof(int) + 2 * sizeof(std::uint32_t) + sizeof(Color3) + sizeof(Color<float>) +
         3 * sizeof(std::uint32_t) +
         (ringed ? sizeof(RingedPart) + sizeof(std::array<double, 2>) + sizeof(PathGroups) : 0);
     return double(pixels) * perPixel +

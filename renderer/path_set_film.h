@@ -1,5 +1,7 @@
 // The film a path recording is made on (path_set.h): per pixel the background, in double until the
 // end, and the terms of the paths that reach a fitted material, each scaled to the pixel's mean.
+// What is summed while tracing is kept for the pixels that take paths alone (a fit's window holds
+// pixels it does not record).
 // Fed by the tile loop (tile_loop.h); tiles record on their own, and assemble() sorts the terms
 // into pixel order.
 #pragma once
@@ -57,8 +59,9 @@ public:
         PathSetFilm& film_;
         TileRecord& record_;
         std::uint32_t pixel_;
-        bool ringed_;   // one of the pixel's ringed samples
-        double scale_;  // 1 / the pixel's paths
+        std::uint32_t at_;  // the pixel's index among those that take paths
+        bool ringed_;       // one of the pixel's ringed samples
+        double scale_;      // 1 / the pixel's paths
         std::size_t termsBefore_, verticesBefore_;
         Color3 backgroundBefore_;
     };
@@ -80,12 +83,17 @@ private:
     // Terms were scaled by 1 / paths; a pixel that kept fewer is rescaled to their mean (a factor
     // of 1 changes no bit).
     double rescale(std::size_t pixel) const;
-    // Per pixel, the factors of its ringed and its sampled terms: where it kept both, each group's
-    // mean weighted by the inverse of its variance, pooled over the pixel's neighbours (not its
-    // own samples: weights that depend on them would bias it); else rescale's. Fills set.groups.
-    // Empty, and set.groups too, where no pixel kept both.
-    std::vector<std::array<double, 2>> groupFactors(PathSet& set) const;
-    // The factor of pixel p's ringed or sampled terms: from groupFactors', else rescale's.
+    // Pixel p's index among the pixels that take paths, kNotTraced where it takes none.
+    static constexpr std::uint32_t kNotTraced = ~std::uint32_t(0);
+    // Fills set.background and, where some pixel kept both groups, set.groups; returns per pixel
+    // that takes paths the factors of its ringed and its sampled terms: where it kept both, each
+    // group's mean weighted by the inverse of its variance, pooled over the pixel's neighbours
+    // (not its own samples: weights that depend on them would bias it); else rescale's. Empty
+    // where no pixel kept both. Consumes the backgrounds and ringed parts, handing them back row
+    // by row as the rows still to come no longer read them.
+    std::vector<std::array<double, 2>> weigh(PathSet& set);
+    // The factor of pixel p's ringed or sampled terms: from weigh's, else rescale's (1 where
+    // it takes no paths, and has neither terms nor background).
     double factor(const std::vector<std::array<double, 2>>& factors, std::size_t p,
                   bool ringed) const;
     // Copies a tile's record into `set` at the pixels' cursors, pixel by pixel and each pixel's
@@ -101,10 +109,13 @@ private:
 
     int width_, height_;
     std::vector<int> paths_;
-    std::vector<Color3> background_;  // summed in double in sample order, as traced
-    std::vector<std::uint32_t> kept_;
+    std::vector<std::uint32_t> traced_;  // per pixel, its index among those that take paths
+    // Per pixel that takes paths (traced_): the background, summed in double in sample order, as
+    // traced, and where ringed_ > 0 the ringed part.
+    BlockArray<Color3> background_;
+    BlockArray<RingedPart> ringedParts_;
+    std::vector<std::uint32_t> kept_;  // per pixel
     std::uint32_t ringed_;
-    std::vector<RingedPart> ringedParts_;  // per pixel where ringed_ > 0
     std::vector<TileRecord> tiles_;
 };
 

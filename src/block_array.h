@@ -48,6 +48,7 @@ public:
 
     std::size_t size() const { return size_; }
     const T& operator[](std::size_t i) const { return blocks_[i / kBlock][i % kBlock]; }
+    T& operator[](std::size_t i) { return blocks_[i / kBlock][i % kBlock]; }
 
     void push_back(const T& x) {
         if (size_ == blocks_.size() * kBlock)

@@ -20,6 +20,7 @@
 #include "memory_plan.h"
 #include "render_to_exr.h"
 #include "renderer.h"
+#include "round_paths.h"
 #include "scene_fit.h"
 #include "scene_parser.h"
 
@@ -204,25 +205,38 @@ TEST(FitMemory, PixelsRenderedAnewAddNothingToThePeak) {
 // times; then 1.4, the records' growth slack while tracing.
 // How far the resident set rose while recording the Cornell box's sphere, in units of the paths
 // recorded.
-double recordingPeak(int size, int spp) {
+// A recording of `renderer` with `options`, and how far the resident set rose while it was made.
+struct MeasuredRecording {
+    std::vector<PathSet> sets;  // the one set, as recordedBytes takes them
+    double rise;
+};
+MeasuredRecording measuredRecording(const Renderer& renderer, const RecordOptions& options) {
     mallopt(M_MMAP_THRESHOLD, 1 << 16);  // as main: freed big buffers leave the resident set
+    malloc_trim(0);
+    const std::size_t before = residentBytes();
+    resetPeakResident();
+    RecordResult r = renderer.record(options);
+    const double rise = double(peakResidentBytes() - before);
+    MeasuredRecording out{{}, rise};
+    out.sets.push_back(std::move(r.paths));
+    return out;
+}
+
+double recordingPeak(int size, int spp) {
     const Renderer renderer(
         loadScene(kCornell, {{"width", std::to_string(size)}, {"height", std::to_string(size)}}));
     RecordOptions options;
     options.spp = spp;
     options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
     options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
-    malloc_trim(0);
-    const std::size_t before = residentBytes();
-    resetPeakResident();
-    const RecordResult r = renderer.record(options);
-    const std::size_t rise = peakResidentBytes() - before;
+    const MeasuredRecording m = measuredRecording(renderer, options);
+    const PathSet& set = m.sets[0];
     const std::size_t bytes =
-        r.paths.terms.size() * sizeof(PathTerm) + r.paths.vertices.size() * sizeof(PathVertex);
+        set.terms.size() * sizeof(PathTerm) + set.vertices.size() * sizeof(PathVertex);
     EXPECT_GT(bytes, std::size_t(20) << 20);
     std::cout << size << "x" << size << " at " << spp << " paths a pixel: the recording's peak "
-              << double(rise) / double(bytes) << " times its " << bytes << " bytes of paths\n";
-    return double(rise) / double(bytes);
+              << m.rise / double(bytes) << " times its " << bytes << " bytes of paths\n";
+    return m.rise / double(bytes);
 }
 
 // Few tiles with big records (40x40 film, 9 tiles): 2.22 times the paths before the set was
@@ -247,6 +261,49 @@ TEST(RecordingMemory, ManySmallTileRecordsLeaveNoSlack) {
                     "its allocator, not the recording";
 #endif
     EXPECT_LT(recordingPeak(256, 128), 1.10);
+}
+
+// How far the resident set rose while a ringed recording was made (sphere_quad.xml at 256x256:
+// direct light alone, the quad light by rings, every pixel taking paths beyond those ringed),
+// beyond its path set, per pixel that takes paths: every pixel of the film, or its left half
+// alone (`recorded`).
+double ringedFilmBytes(bool leftHalf) {
+    const Renderer renderer(loadScene(std::string(PHONGFIT_SCENES_DIR) + "/sphere_quad.xml",
+                                      {{"width", "256"}, {"height", "256"}}));
+    const std::size_t pixels = 256 * 256;
+    std::vector<std::uint8_t> recorded(pixels, 1);
+    if (leftHalf)
+        for (std::size_t p = 0; p < pixels; ++p) recorded[p] = p % 256 < 128;
+    RecordOptions options;
+    options.spp = 4;
+    options.extraPaths.assign(pixels, 4);
+    options.recorded = recorded;
+    options.fittedBsdfs = {renderer.scene().findBsdf("sphere")};
+    options.theta0 = {renderer.scene().bsdfs[std::size_t(options.fittedBsdfs[0])].params};
+    const MeasuredRecording m = measuredRecording(renderer, options);
+    EXPECT_FALSE(m.sets[0].groups.empty());  // ringed and sampled paths weighted
+    const double setBytes = double(recordedBytes(m.sets));
+    const double perPixel = (m.rise - setBytes) / (leftHalf ? double(pixels) / 2 : double(pixels));
+    std::cout << (leftHalf ? "left half" : "whole film") << ": " << perPixel
+              << " bytes a traced pixel beyond the " << setBytes << " bytes of the set\n";
+    return perPixel;
+}
+
+// A fit's window holds pixels it does not record (left out, or around the ones it uses): the
+// ringed film's sums are kept for the traced pixels alone, and handed back row by row as the
+// weights are made (PathSetFilm::weigh). Before, the film held 80 bytes of ringed sums, 24 of
+// background and 16 of factors for every pixel of the window at once: 150-151 bytes a traced pixel
+// over the whole film, 275-280 over its left half; now 121-125 and 108-111. (In fits: the sphere
+// cells under area lights peaked at 207-209 bytes a used pixel beyond their paths, the issue's
+// quad-light sphere at 256-266; now 178-179 and 201-209.)
+TEST(RecordingMemory, RingedFilmHoldsItsSumsForTracedPixelsAlone) {
+#if defined(PHONGFIT_ADDRESS_SANITIZER)
+    GTEST_SKIP() << "AddressSanitizer keeps freed memory in quarantine: the resident set measures "
+                    "its allocator, not the recording";
+#endif
+    const double whole = ringedFilmBytes(false), half = ringedFilmBytes(true);
+    EXPECT_LT(whole, 135.0);
+    EXPECT_LT(half, 1.5 * whole);
 }
 
 // The program's own pages made resident before a fit measures its start (residentProgram): before,
