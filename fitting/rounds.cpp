@@ -347,6 +347,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         const std::size_t programBytes = files - std::min(files, filesAtStart);
         const double recordFactor = probed ? probePathFactor : pathFactor;
         const RoundSets sets = recordAll(theta.materials, round, importance, recordFactor);
+        importance = {};  // spent: the next round's is made after the solve, which peaks above it
         const double recordSeconds = secondsSince(roundBegin);
         for (std::size_t s = 0; s < sharpestRecorded.size(); ++s)
             sharpestRecorded[s] = std::max(sharpestRecorded[s], theta.materials[s].n);
