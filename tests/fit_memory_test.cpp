@@ -326,6 +326,7 @@ TEST(ResidentSet, TheProgramsOwnPagesAreResidentWhenAsked) {
         if (first.find('-') != std::string::npos && first.back() != ':') {  // a mapping's header
             std::string offset, device, inode;
             fields >> offset >> device >> inode;
+            path.clear();  // an anonymous mapping names no file
             std::getline(fields >> std::ws, path);
             readable = second.size() == 4 && second[0] == 'r';
         } else if (first == "Size:" && path == exe && readable) {
