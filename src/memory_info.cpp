@@ -1,5 +1,6 @@
 #include "memory_info.h"
 
+#include <malloc.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -47,6 +48,8 @@ std::size_t residentBytes() {
     if (!(in >> size >> resident)) return 0;
     return resident * std::size_t(sysconf(_SC_PAGESIZE));
 }
+
+void mapLargeBuffers() { mallopt(M_MMAP_THRESHOLD, 1 << 16); }
 
 void residentProgram() {
     std::error_code error;

@@ -12,6 +12,13 @@ std::size_t residentBytes();
 // files mapped for reading, which the kernel brings in as they are first touched and may drop.
 std::size_t fileResidentBytes();
 
+// Buffers of 64 kB or more (recorded paths, a fit's per-pixel state) are mapped and unmapped
+// whole from then on: glibc's adaptive threshold would serve them from the heap after the first is
+// freed, and keep them resident once freed; a threshold of a megabyte left a small fit's per-pixel
+// arrays in the heap, freed ones resident among live ones (docs/design/fitter.md, "Memory").
+// Called by main, and by the tests that measure the resident set as main leaves it.
+void mapLargeBuffers();
+
 // Makes every page of the program's own executable file resident (its code and constant data),
 // so that the code a fit first runs is not counted as the fit's memory: a fit's
 // memory is then its data, exactly, where the program's pages taken in meanwhile could only be

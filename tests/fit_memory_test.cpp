@@ -214,7 +214,7 @@ struct MeasuredRecording {
     double rise;
 };
 MeasuredRecording measuredRecording(const Renderer& renderer, const RecordOptions& options) {
-    mallopt(M_MMAP_THRESHOLD, 1 << 16);  // as main: freed big buffers leave the resident set
+    mapLargeBuffers();  // as main: freed big buffers leave the resident set
     malloc_trim(0);
     const std::size_t before = residentBytes();
     resetPeakResident();

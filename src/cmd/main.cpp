@@ -1,7 +1,5 @@
 // The phongfit command line: each module adds its subcommand; errors become one line and exit 1.
 // SIGINT/SIGTERM are caught here, once: the libraries only poll interruptRequested().
-#include <malloc.h>
-
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
@@ -9,13 +7,10 @@
 #include "commands.h"
 #include "error.h"
 #include "interrupt.h"
+#include "memory_info.h"
 
 int main(int argc, char** argv) {
-    // Buffers of 64 kB or more (recorded paths, a fit's per-pixel state) are mapped and unmapped
-    // whole: glibc's adaptive threshold would serve them from the heap after the first is freed,
-    // and keep them resident once freed; a threshold of a megabyte left a small fit's per-pixel
-    // arrays in the heap, freed ones resident among live ones (docs/design/fitter.md, "Memory").
-    mallopt(M_MMAP_THRESHOLD, 1 << 16);
+    phongfit::mapLargeBuffers();
     CLI::App app{
         "phongfit: recover Modified Phong BRDF parameters from images, and render with them"};
     app.require_subcommand(1);
