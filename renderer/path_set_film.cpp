@@ -82,11 +82,11 @@ void PathSetFilm::Sample::keep(const Color3& value) {
     ++film_.kept_[pixel_];
     if (film_.ringed_ == 0) return;
     RingedPart& part = film_.ringedParts_[at_];
-    GroupSums& group = ringed_ ? part.ringed : part.sampled;
+    const std::size_t group = ringed_ ? kRinged : kSampled;
     const double y = value.mean();
-    ++group.kept;
-    group.sum += y;
-    group.squares += y * y;
+    ++part.kept[group];
+    part.sum[group] += y;
+    part.squares[group] += y * y;
     if (ringed_) part.terms += std::uint32_t(record_.terms.size() - termsBefore_);
 }
 
@@ -104,7 +104,7 @@ double PathSetFilm::rescale(std::size_t p) const {
 std::vector<std::array<double, 2>> PathSetFilm::weigh(PathSet& set) {
     const std::size_t pixels = paths_.size();
     const auto keptBoth = [](const RingedPart& part) {
-        return part.ringed.kept > 0 && part.sampled.kept > 0;
+        return part.kept[kRinged] > 0 && part.kept[kSampled] > 0;
     };
     // Only ringed recordings whose pixels took more paths than they ring weight any: the others
     // keep rescale's factors, computed as the terms are copied (a vector of them would add 16
@@ -114,21 +114,23 @@ std::vector<std::array<double, 2>> PathSetFilm::weigh(PathSet& set) {
         weighted = keptBoth(ringedParts_[i]);
     // A group's variance a path, pooled over the pixel's neighbours within `radius` that kept
     // two of its samples; negative where none did.
-    const auto pooled = [&](int x, int y, int radius, const GroupSums RingedPart::*group) {
+    const auto pooled = [&](int x, int y, int radius, std::size_t group) {
         double squares = 0, freedom = 0;
         for (int v = std::max(y - radius, 0); v <= std::min(y + radius, height_ - 1); ++v)
             for (int u = std::max(x - radius, 0); u <= std::min(x + radius, width_ - 1); ++u) {
                 const std::uint32_t at =
                     traced_[std::size_t(v) * std::size_t(width_) + std::size_t(u)];
                 if ((u == x && v == y) || at == kNotTraced) continue;
-                const GroupSums& g = ringedParts_[at].*group;
-                if (g.kept < 2) continue;
-                squares += std::max(g.squares - g.sum * g.sum / g.kept, 0.0);
-                freedom += g.kept - 1;
+                const RingedPart& part = ringedParts_[at];
+                const std::uint32_t kept = part.kept[group];
+                if (kept < 2) continue;
+                const double sum = part.sum[group];
+                squares += std::max(part.squares[group] - sum * sum / kept, 0.0);
+                freedom += kept - 1;
             }
         return freedom > 0 ? squares / freedom : -1.0;
     };
-    const auto variance = [&](int x, int y, const GroupSums RingedPart::*group) {
+    const auto variance = [&](int x, int y, std::size_t group) {
         double v = -1;
         for (int radius = 1; radius <= kMostPoolRadius && v < 0; ++radius)
             v = pooled(x, y, radius, group);
@@ -156,22 +158,21 @@ std::vector<std::array<double, 2>> PathSetFilm::weigh(PathSet& set) {
             }
             if (weighted && keptBoth(*part)) {
                 const int x = int(p % std::size_t(width_));
-                const double ringedVariance = variance(x, y, &RingedPart::ringed),
-                             sampledVariance = variance(x, y, &RingedPart::sampled);
+                const double ringedVariance = variance(x, y, kRinged),
+                             sampledVariance = variance(x, y, kSampled);
                 // The ringed mean's weight, by the inverse of the variances of the two means;
                 // where a variance is not known, the ringed mean's (the sampled paths are the
                 // ones whose noise can be far larger).
-                const double a = ringedVariance / part->ringed.kept,
-                             b = sampledVariance / part->sampled.kept;
+                const double ringedKept = part->kept[kRinged], sampledKept = part->kept[kSampled];
+                const double a = ringedVariance / ringedKept, b = sampledVariance / sampledKept;
                 const double w =
                     ringedVariance < 0 || sampledVariance < 0 || !(a + b > 0)
                         ? 1 - kLeastGroupWeight
                         : std::clamp(b / (a + b), kLeastGroupWeight, 1 - kLeastGroupWeight);
                 const double kept = double(kept_[p]);
-                factors[at] = {paths_[p] * w / part->ringed.kept,
-                               paths_[p] * (1 - w) / part->sampled.kept};
-                set.groups[p].ringedScale = float(w * kept / part->ringed.kept);
-                set.groups[p].sampledScale = float((1 - w) * kept / part->sampled.kept);
+                factors[at] = {paths_[p] * w / ringedKept, paths_[p] * (1 - w) / sampledKept};
+                set.groups[p].ringedScale = float(w * kept / ringedKept);
+                set.groups[p].sampledScale = float((1 - w) * kept / sampledKept);
             }
             Color3 background = background_[at] * factor(factors, p, false);
             if (part != nullptr)
@@ -222,11 +223,12 @@ void PathSetFilm::copyRecord(TileRecord& record, PathSet& set, std::vector<std::
                 term.constant = (term.constant.cast<double>() * scale).cast<float>();
                 set.terms[nextTerm[p]++] = term;
             }
-            // What the run has copied goes back a few pages at a time, each time from a page
-            // before where it went back last (that page may have been partly unread then).
+            // What the run has copied goes back a page at a time (a record holds a run a pass,
+            // each holding its unreturned pages), each time from a page before where it went
+            // back last (that page may have been partly unread then).
             if ((run.next - run.termsFreed) * sizeof(PathTerm) +
                     (run.nextVertex - run.verticesFreed) * sizeof(PathVertex) <
-                4 * page)
+                page)
                 continue;
             handedBack(record.terms.releaseWithin(run.termsFreed, run.next) +
                        record.vertices.releaseWithin(run.verticesFreed, run.nextVertex));

@@ -26,18 +26,18 @@ class PathSetFilm {
         BlockArray<PathVertex> vertices;  // firstVertex into these
     };
 
-    // A pixel's kept samples of one group (PathGroups): their count, and the sum and squares of
-    // their values (the mean over channels), for the group's variance.
-    struct GroupSums {
-        std::uint32_t kept = 0;
-        double sum = 0, squares = 0;
-    };
-    // What a pixel's ringed samples (its first `ringed`) hold apart from the others.
+    // What a pixel's ringed samples (its first `ringed`) hold apart from the others: per group
+    // (PathGroups; kRinged, kSampled) its kept samples' count, and the sum and squares of their
+    // values (the mean over channels), for the group's variance. The counts lie together, after
+    // the doubles: one count beside each group's doubles would pad the part to 80 bytes.
+    static constexpr std::size_t kRinged = 0, kSampled = 1;
     struct RingedPart {
-        GroupSums ringed, sampled;
-        std::uint32_t terms = 0;
+        std::array<double, 2> sum{}, squares{};
         Color3 background = Color3::Zero();
+        std::array<std::uint32_t, 2> kept{};
+        std::uint32_t terms = 0;
     };
+    static_assert(sizeof(RingedPart) == 72);
 
 public:
     // `paths`: per pixel, how many samples it takes; `tiles`: how many tiles feed the film;
