@@ -47,7 +47,8 @@ void Instruments<P>::adopt(Objective<P>& objective, const Linearization<P>& at) 
     for (int k = 0; k < sets; ++k) {
         // The Jacobians at `at`, replayed, of the pixels that see a material (the others count
         // as 0 in the smoothing).
-        std::vector<StoredJacobian> own(prep.slots.size(), StoredJacobian::Zero());
+        std::vector<StoredJacobian>& own = instruments_[k];
+        own.assign(prep.slots.size(), StoredJacobian::Zero());
         objective.sumPixels(prep.seeingMaterial, 0,
                             [&](std::size_t i, int&, typename Objective<P>::Scratch& scratch) {
                                 const UsedPixel& u = prep.pixels[i];
@@ -56,7 +57,7 @@ void Instruments<P>::adopt(Objective<P>& objective, const Linearization<P>& at) 
                                     own[u.slotBegin + a] =
                                         storeJacobian<P>(scratch.jacobians[k][a]);
                             });
-        instruments_[k] = smoothedJacobians(prep, own, objective.arena());
+        smoothJacobians(prep, own, objective.arena());
     }
     weights_ = at.weights;
     const std::vector<float> precision = residualPrecisions(prep, at.residuals);
@@ -135,42 +136,90 @@ Eigen::MatrixXd Instruments<P>::whitening(const std::vector<int>& free) const {
     return llt.matrixL().solve(Eigen::MatrixXd(scale.asDiagonal()));
 }
 
-std::vector<StoredJacobian> smoothedJacobians(const UsedPixels& prep,
-                                              const std::vector<StoredJacobian>& jacobians,
-                                              tbb::task_arena& arena) {
-    std::vector<StoredJacobian> out(jacobians.size());
-    arena.execute([&] {
-        tbb::parallel_for(std::size_t(0), prep.pixels.size(), [&](std::size_t i) {
-            const UsedPixel& u = prep.pixels[i];
-            const int width = prep.widths[u.view], height = prep.heights[u.view];
-            const int x = int(u.pixel % std::uint32_t(width)),
-                      y = int(u.pixel / std::uint32_t(width));
-            const int x0 = std::max(x - kInstrumentRadius, 0),
-                      x1 = std::min(x + kInstrumentRadius, width - 1);
-            const int y0 = std::max(y - kInstrumentRadius, 0),
-                      y1 = std::min(y + kInstrumentRadius, height - 1);
-            const double count = double((x1 - x0 + 1) * (y1 - y0 + 1));
-            for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                const std::uint32_t slot = prep.slots[u.slotBegin + a];
-                Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
-                for (int yy = y0; yy <= y1; ++yy)
-                    for (int xx = x0; xx <= x1; ++xx) {
-                        const std::int32_t q =
-                            prep.index[u.view][std::size_t(yy) * std::size_t(width) + xx];
-                        if (q < 0 || !prep.pixels[std::size_t(q)].seesMaterial) continue;
-                        const std::span<const std::uint32_t> slots =
-                            prep.slotsOf(prep.pixels[std::size_t(q)]);
-                        const auto b = std::lower_bound(slots.begin(), slots.end(), slot);
-                        if (b == slots.end() || *b != slot) continue;
-                        sum += jacobians[prep.pixels[std::size_t(q)].slotBegin +
-                                         std::size_t(b - slots.begin())]
-                                   .cast<double>();
-                    }
-                out[u.slotBegin + a] = (sum / count).cast<float>();
+namespace {
+
+// A row's entries as they were before it was smoothed: per x its first entry (width + 1 of them),
+// the entries of the pixels that see a material.
+struct SavedRow {
+    std::vector<std::uint32_t> start;
+    std::vector<StoredJacobian> entries;
+
+    void save(const UsedPixels& prep, const std::vector<StoredJacobian>& jacobians,
+              std::uint32_t view, int y) {
+        const int width = prep.widths[view];
+        start.assign(std::size_t(width) + 1, 0);
+        entries.clear();
+        for (int x = 0; x < width; ++x) {
+            start[std::size_t(x)] = std::uint32_t(entries.size());
+            const std::int32_t q = prep.index[view][std::size_t(y) * std::size_t(width) + x];
+            if (q < 0 || !prep.pixels[std::size_t(q)].seesMaterial) continue;
+            const UsedPixel& u = prep.pixels[std::size_t(q)];
+            entries.insert(entries.end(), jacobians.begin() + u.slotBegin,
+                           jacobians.begin() + u.slotBegin + u.slotCount);
+        }
+        start[std::size_t(width)] = std::uint32_t(entries.size());
+    }
+    // The entry of the pixel at x, in the `at`-th of its slots.
+    const StoredJacobian& entry(int x, std::size_t at) const {
+        return entries[start[std::size_t(x)] + at];
+    }
+};
+
+// The last kInstrumentRadius + 1 rows saved; row y in y % its size.
+using SavedRows = std::array<SavedRow, kInstrumentRadius + 1>;
+
+// Smooths the entries of used pixel i, at (x, y) of its view: rows up to y read from `saved`,
+// those below (not smoothed yet) from `jacobians`.
+void smoothPixel(const UsedPixels& prep, std::vector<StoredJacobian>& jacobians,
+                 const SavedRows& saved, std::size_t i, int x, int y) {
+    const UsedPixel& u = prep.pixels[i];
+    const int width = prep.widths[u.view], height = prep.heights[u.view];
+    const int x0 = std::max(x - kInstrumentRadius, 0),
+              x1 = std::min(x + kInstrumentRadius, width - 1);
+    const int y0 = std::max(y - kInstrumentRadius, 0),
+              y1 = std::min(y + kInstrumentRadius, height - 1);
+    const double count = double((x1 - x0 + 1) * (y1 - y0 + 1));
+    for (std::uint32_t a = 0; a < u.slotCount; ++a) {
+        const std::uint32_t slot = prep.slots[u.slotBegin + a];
+        Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+        for (int yy = y0; yy <= y1; ++yy)
+            for (int xx = x0; xx <= x1; ++xx) {
+                const std::int32_t q =
+                    prep.index[u.view][std::size_t(yy) * std::size_t(width) + xx];
+                if (q < 0 || !prep.pixels[std::size_t(q)].seesMaterial) continue;
+                const UsedPixel& neighbour = prep.pixels[std::size_t(q)];
+                const std::span<const std::uint32_t> slots = prep.slotsOf(neighbour);
+                const auto b = std::lower_bound(slots.begin(), slots.end(), slot);
+                if (b == slots.end() || *b != slot) continue;
+                const std::size_t at = std::size_t(b - slots.begin());
+                sum += (yy <= y ? saved[std::size_t(yy) % saved.size()].entry(xx, at)
+                                : jacobians[neighbour.slotBegin + at])
+                           .cast<double>();
             }
-        });
-    });
-    return out;
+        jacobians[u.slotBegin + a] = (sum / count).cast<float>();
+    }
+}
+
+}  // namespace
+
+void smoothJacobians(const UsedPixels& prep, std::vector<StoredJacobian>& jacobians,
+                     tbb::task_arena& arena) {
+    // Row by row, in place: a row is saved as it was before its pixels are smoothed side by side,
+    // for them and the rows below to read.
+    SavedRows saved;
+    for (std::uint32_t view = 0; view < prep.widths.size(); ++view) {
+        const int width = prep.widths[view];
+        for (int y = 0; y < prep.heights[view]; ++y) {
+            saved[std::size_t(y) % saved.size()].save(prep, jacobians, view, y);
+            arena.execute([&] {
+                tbb::parallel_for(0, width, [&](int x) {
+                    const std::int32_t i =
+                        prep.index[view][std::size_t(y) * std::size_t(width) + x];
+                    if (i >= 0) smoothPixel(prep, jacobians, saved, std::size_t(i), x, y);
+                });
+            });
+        }
+    }
 }
 
 std::vector<float> residualPrecisions(

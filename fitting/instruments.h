@@ -71,13 +71,14 @@ private:
 std::vector<float> residualPrecisions(const UsedPixels& pixels,
                                       const std::array<std::vector<Eigen::Vector3f>, 2>& residuals);
 
-// Each entry of `jacobians` (per pixel slot) averaged over the (2 kInstrumentRadius + 1)^2 pixels
-// around its pixel, in the same slot (pixels that are not used or see no material count as 0): a
-// few samples make a pixel's Jacobian as noisy as its value, and instruments that noisy cost the
-// estimate precision.
-std::vector<StoredJacobian> smoothedJacobians(const UsedPixels& pixels,
-                                              const std::vector<StoredJacobian>& jacobians,
-                                              tbb::task_arena& arena);
+// Replaces each entry of `jacobians` (per pixel slot) by its average over the
+// (2 kInstrumentRadius + 1)^2 pixels around its pixel, in the same slot (pixels that are not used
+// or see no material count as 0): a few samples make a pixel's Jacobian as noisy as its value,
+// and instruments that noisy cost the estimate precision. In place, holding a few rows aside: a
+// second copy would be the largest part of the fit's state as it makes the second set's
+// instruments (docs/design/fitter.md, "Memory").
+void smoothJacobians(const UsedPixels& pixels, std::vector<StoredJacobian>& jacobians,
+                     tbb::task_arena& arena);
 
 // Pixel i's term m of the estimating equations and, if `jacobian` is not null, its Jacobian, over
 // the pixel's slots, from `at`: W_other Z_other^T r_k summed over the sets with `instruments`,
