@@ -92,6 +92,9 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out, const FreeExponents* free) 
     if (options_.precision > 0)
         out.pathShare = recordingShare(objective_, at_, instrumental_ ? &instruments_ : nullptr,
                                        analysis_, params_.held());
+    // Each solve makes its own instruments (as the round's first does, from none): they are not
+    // held through the image noise's sums.
+    instruments_ = {};
     out.materials.clear();
     const std::vector<std::vector<double>> imageNoise =
         // The first round, recorded at the start, is judged by the tolerance alone: its
