@@ -23,6 +23,7 @@
 #include "path_importance.h"
 #include "pooled_rounds.h"
 #include "precision_target.h"
+#include "resident_peak.h"
 #include "round_paths.h"
 #include "round_scatter.h"
 #include "round_solver.h"
@@ -143,7 +144,7 @@ void checkRoundSets(const RoundSets& sets, const std::vector<Observation>& obser
 
 // What fit.json and the progress line report of a round.
 FitRound roundReport(int round, double pathFactor, bool probe, const RoundSets& sets,
-                     const RoundOutcome& out) {
+                     const RoundOutcome& out, ResidentPeak& peak) {
     const bool exact = sets.first == sets.second;
     FitRound r;
     r.round = round;
@@ -156,7 +157,7 @@ FitRound roundReport(int round, double pathFactor, bool probe, const RoundSets& 
     r.materials = out.materials;
     r.exposure = out.exposure;
     r.recordedBytes = recordedBytes(*sets.first) + (exact ? 0 : recordedBytes(*sets.second));
-    r.peakMemoryBytes = peakResidentBytes();
+    r.peakMemoryBytes = peak.bytes();
     return r;
 }
 
@@ -258,11 +259,13 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                     const std::vector<PhongMaterial>& start, const FitOptions& options,
                     int maxRounds, bool rerecords) {
     const auto begin = std::chrono::steady_clock::now();
+    // Started before the start is read: its thread's pages are the process's, not the fit's.
+    ResidentPeak peak;
     // Counted from what the process holds, not what its heap kept of what it freed (as after
     // each round below).
     malloc_trim(0);
     residentProgram();
-    resetPeakResident();
+    peak.reset();
     const std::size_t residentAtStart = residentBytes(), filesAtStart = fileResidentBytes();
     const int threads = options.threads > 0 ? options.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
@@ -425,7 +428,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         solver.reset();
         malloc_trim(0);  // the solver's many small blocks leave the resident set
 
-        FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out);
+        FitRound r = roundReport(round, recordFactor, probed.has_value(), sets, out, peak);
         r.broadStride = std::exchange(atStride, false);
         // A round that settled at the pool's estimate joins it; one that moved, or the first
         // round recorded at an estimate, starts a pool of its own. Both as lobe confirmation left
