@@ -103,8 +103,8 @@ struct FitRound {
     double recordSeconds = 0;  // in the recorder
     // The two recorded path sets of all views: terms and vertices, in bytes.
     std::size_t recordedBytes = 0;
-    std::size_t peakMemoryBytes =
-        0;  // the most the process held up to the round's end (ResidentPeak)
+    // The most the process held from the rounds' start to the round's end (ResidentPeak).
+    std::size_t peakMemoryBytes = 0;
     // Pages of the program's code and libraries (file-backed, fileResidentBytes) the process took
     // in since the rounds began, as the round began: code that first runs in the fit.
     std::size_t programBytes = 0;
