@@ -42,8 +42,10 @@ TEST(ResidentPeak, StartsAfreshWhenReset) {
     holdAPeak();
     ASSERT_GE(peak.bytes() + kSlack, residentBytes() + kHeld);
     peak.reset();
-    EXPECT_LT(peak.bytes(), residentBytes() + kHeld / 2);
-    EXPECT_GE(peak.bytes(), residentBytes());
+    // Read before bytes(), which reads again: the resident set may grow by a few pages between.
+    const std::size_t now = residentBytes();
+    EXPECT_LT(peak.bytes(), now + kHeld / 2);
+    EXPECT_GE(peak.bytes() + kSlack, now);
 }
 
 }  // namespace
