@@ -1,11 +1,13 @@
 #include "memory_info.h"
 
+#include <fcntl.h>
 #include <malloc.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -43,10 +45,21 @@ std::size_t statusBytes(const char* wanted) {
 }  // namespace
 
 std::size_t residentBytes() {
-    std::ifstream in("/proc/self/statm");
-    std::size_t size = 0, resident = 0;
-    if (!(in >> size >> resident)) return 0;
-    return resident * std::size_t(sysconf(_SC_PAGESIZE));
+    const int statm = ::open("/proc/self/statm", O_RDONLY | O_CLOEXEC);
+    const std::size_t bytes = residentBytes(statm);
+    if (statm >= 0) ::close(statm);
+    return bytes;
+}
+
+std::size_t residentBytes(int statm) {
+    // Into a buffer of its own: a reading allocates nothing.
+    char text[128];
+    const ssize_t length = statm < 0 ? -1 : ::pread(statm, text, sizeof(text) - 1, 0);
+    if (length <= 0) return 0;
+    text[length] = '\0';
+    unsigned long size = 0, resident = 0;
+    if (std::sscanf(text, "%lu %lu", &size, &resident) != 2) return 0;
+    return std::size_t(resident) * std::size_t(sysconf(_SC_PAGESIZE));
 }
 
 void mapLargeBuffers() { mallopt(M_MMAP_THRESHOLD, 1 << 16); }

@@ -7,6 +7,8 @@ namespace phongfit {
 
 // Bytes the process holds now (resident set), 0 where it cannot be read.
 std::size_t residentBytes();
+// The same, read from /proc/self/statm open as `statm` (at its start; 0 where it cannot be read).
+std::size_t residentBytes(int statm);
 
 // Of residentBytes(), the pages backed by files (RssFile): the program's code and libraries, and
 // files mapped for reading, which the kernel brings in as they are first touched and may drop.

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
 
 #include "memory_info.h"
 
@@ -54,14 +53,7 @@ std::size_t ResidentPeak::bytes() {
 }
 
 void ResidentPeak::read() {
-    // Into a buffer of its own, from an open file: a reading allocates nothing.
-    char text[128];
-    const ssize_t length = statm_ < 0 ? -1 : ::pread(statm_, text, sizeof(text) - 1, 0);
-    if (length <= 0) return;
-    text[length] = '\0';
-    unsigned long size = 0, resident = 0;
-    if (std::sscanf(text, "%lu %lu", &size, &resident) != 2) return;
-    const std::size_t bytes = std::size_t(resident) * std::size_t(sysconf(_SC_PAGESIZE));
+    const std::size_t bytes = residentBytes(statm_);
     std::size_t seen = most_.load();
     while (bytes > seen && !most_.compare_exchange_weak(seen, bytes)) {
     }
