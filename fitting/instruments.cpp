@@ -207,19 +207,19 @@ void smoothJacobians(const UsedPixels& prep, std::vector<StoredJacobian>& jacobi
     // Row by row, in place: a row is saved as it was before its pixels are smoothed side by side,
     // for them and the rows below to read.
     SavedRows saved;
-    for (std::uint32_t view = 0; view < prep.widths.size(); ++view) {
-        const int width = prep.widths[view];
-        for (int y = 0; y < prep.heights[view]; ++y) {
-            saved[std::size_t(y) % saved.size()].save(prep, jacobians, view, y);
-            arena.execute([&] {
+    arena.execute([&] {
+        for (std::uint32_t view = 0; view < prep.widths.size(); ++view) {
+            const int width = prep.widths[view];
+            for (int y = 0; y < prep.heights[view]; ++y) {
+                saved[std::size_t(y) % saved.size()].save(prep, jacobians, view, y);
                 tbb::parallel_for(0, width, [&](int x) {
                     const std::int32_t i =
                         prep.index[view][std::size_t(y) * std::size_t(width) + x];
                     if (i >= 0) smoothPixel(prep, jacobians, saved, std::size_t(i), x, y);
                 });
-            });
+            }
         }
-    }
+    });
 }
 
 std::vector<float> residualPrecisions(
