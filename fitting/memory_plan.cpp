@@ -40,13 +40,21 @@ double nextRoundBytes(std::size_t recordedBytes, double growth, std::size_t pixe
     return double(recordedBytes) * growth + double(kStateBytesPerPixel) * double(pixelsUsed);
 }
 
-void requireMemory(std::size_t need, std::optional<std::size_t> available,
-                   const std::string& what) {
+void requireMemory(std::size_t need, std::size_t limit, const std::string& what) {
+    const std::optional<std::size_t> available = fitMemoryAvailable(limit);
     if (!available || need <= *available) return;
+    // A limit counts the whole process, which already holds the scene, the images and the
+    // renderer: say so, or a limit below that reads as "0 MB available" with no reason.
+    const std::string whence =
+        limit > 0 ? fmt::format(
+                        "--max-memory {:.3g} GB less the {:.1f} MB the process already "
+                        "holds: scene, images, renderer",
+                        double(limit) / 1e9, double(residentBytes()) / 1e6)
+                  : std::string("what the machine has available");
     throw Error(
-        fmt::format("{} needs at least {:.1f} MB, but only {:.1f} MB are available (a "
-                    "smaller image, fewer paths, or a larger --max-memory)",
-                    what, double(need) / 1e6, double(*available) / 1e6));
+        fmt::format("{} needs at least {:.1f} MB, but only {:.1f} MB are available ({}); "
+                    "use a smaller image, fewer paths, or a larger --max-memory",
+                    what, double(need) / 1e6, double(*available) / 1e6, whence));
 }
 
 }  // namespace phongfit

@@ -32,7 +32,8 @@ std::size_t leastFirstRoundBytes(const std::vector<Observation>& observations);
 // state of the `pixelsUsed` pixels the last round used.
 double nextRoundBytes(std::size_t recordedBytes, double growth, std::size_t pixelsUsed);
 
-// Throws Error, naming what is needed and what is available, when `need` exceeds `available`.
-void requireMemory(std::size_t need, std::optional<std::size_t> available, const std::string& what);
+// Throws Error, naming what is needed, what is available and why, when `need` exceeds what
+// fitMemoryAvailable(limit) gives.
+void requireMemory(std::size_t need, std::size_t limit, const std::string& what);
 
 }  // namespace phongfit

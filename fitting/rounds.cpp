@@ -319,7 +319,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // The rounds that settled at the estimate since it last moved (pooled_rounds.h), if any.
     std::optional<PooledRounds<P>> pool;
     if (rerecords)
-        requireMemory(leastFirstRoundBytes(observations), fitMemoryAvailable(options.memoryLimit),
+        requireMemory(leastFirstRoundBytes(observations), options.memoryLimit,
                       fmt::format("the fit's first round ({} bytes of fit state and two "
                                   "recordings of at least {} bytes for each pixel)",
                                   kStateBytesPerPixel, kLeastRecordedBytesPerPixel));
