@@ -13,7 +13,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build=${PHONGFIT_FUZZ_DIR:-$root/build-fuzz}
 seconds=${FUZZ_SECONDS:-60}
 jobs=$(nproc)
-all_targets=(scene_parser scene_render obj_mesh exr png capture)
+all_targets=(scene_parser scene_render obj_mesh exr pfm png capture)
 targets=("$@")
 ((${#targets[@]} > 0)) || targets=("${all_targets[@]}")
 

@@ -17,6 +17,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "image_limits.h"
+#include "pfm_file.h"
 
 namespace phongfit {
 namespace {
@@ -231,14 +232,15 @@ double linearToSrgb(double v) {
 
 Image readImage(const std::string& path, const ReadOptions& options) {
     const std::string ext = lowercaseExtension(path);
-    const bool exr = ext == ".exr";
-    if (!exr && ext != ".png" && ext != ".jpg" && ext != ".jpeg" && ext != ".tif" && ext != ".tiff")
+    const bool exr = ext == ".exr", pfm = ext == ".pfm";
+    if (!exr && !pfm && ext != ".png" && ext != ".jpg" && ext != ".jpeg" && ext != ".tif" &&
+        ext != ".tiff")
         throw Error(
-            fmt::format("cannot read image '{}': unknown extension '{}' (allowed: .exr, "
+            fmt::format("cannot read image '{}': unknown extension '{}' (allowed: .exr, .pfm, "
                         ".png, .jpg, .jpeg, .tif, .tiff)",
                         path, ext));
     requireReadableFile(path, "image");
-    Image image = exr ? readExr(path) : readLdr(path, options);
+    Image image = exr ? readExr(path) : pfm ? readPfm(path) : readLdr(path, options);
     if (image.pixelCount() == 0) throw Error(fmt::format("image '{}' has no pixels", path));
     return image;
 }

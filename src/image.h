@@ -1,5 +1,6 @@
-// Images in linear RGB float. EXR (radiance, as rendered) through OpenEXR; PNG, JPEG and TIFF
-// (photographs, plots) through OpenCV, decoded to linear on reading and encoded to sRGB on writing.
+// Images in linear RGB float. EXR (radiance, as rendered) through OpenEXR, and PFM (pfm_file.h);
+// PNG, JPEG and TIFF (photographs, plots) through OpenCV, decoded to linear on reading and encoded
+// to sRGB on writing.
 // Every write is atomic (atomic_file.h) and refuses non-finite values: a NaN in an output is a bug
 // upstream, which the caller must sanitize and report, never pass on silently.
 #pragma once

@@ -266,7 +266,7 @@ void addFitCommand(CLI::App& app) {
     CLI::Option_group* scene = cmd->add_option_group("scene fits", "with --view");
     scene->add_option(
         "--view", a->views,
-        "SCENE.xml:IMAGE (EXR linear; PNG/JPEG decoded from sRGB); repeat for a joint fit");
+        "SCENE.xml:IMAGE (EXR, PFM linear; PNG/JPEG decoded from sRGB); repeat for a joint fit");
     scene->add_option("--material", a->materials, "id of a phong bsdf to fit; repeatable");
     scene->add_option("--spp", a->spp, "paths recorded per pixel and round")
         ->check(CLI::Range(1, 4096));

@@ -53,6 +53,31 @@ protected:
 };
 fs::path FitCommand::dir_;
 
+// A PFM (what Tungsten writes without OpenEXR) of the same pixels fits to the same digits as the
+// EXR: the reader keeps every float and the rows' order (stored from the bottom up).
+TEST_F(FitCommand, APfmImageFitsAsItsExr) {
+    const Image image = readImage(path("sphere.exr"));
+    std::string bytes =
+        "PF\n" + std::to_string(image.width) + " " + std::to_string(image.height) + "\n-1.0\n";
+    for (int y = image.height - 1; y >= 0; --y)
+        for (int x = 0; x < image.width; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const float v = image.at(x, y)[c];
+                bytes.append(reinterpret_cast<const char*>(&v), sizeof v);
+            }
+    std::ofstream(path("sphere.pfm"), std::ios::binary) << bytes;
+    nlohmann::json materials[2];
+    for (const char* format : {"exr", "pfm"}) {
+        const std::string out = path(std::string("as_") + format);
+        const auto r = run({"fit", "--view", kSphere + ":" + path("sphere.") + format, "--material",
+                            "sphere", "--n", "300", "-o", out, "--quiet"});
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        materials[format[0] == 'p'] =
+            nlohmann::json::parse(std::ifstream(out + "/fit.json"))["materials"];
+    }
+    EXPECT_EQ(materials[1], materials[0]);
+}
+
 TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
     const auto r = run({"fit", "--view", kSphere + ":" + path("sphere.exr"), "--material", "sphere",
                         "--n", "300", "--kd", "0.3", "-o", path("out"), "--quiet"});
