@@ -6,9 +6,13 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+
+#include "error.h"
+#include "image.h"
 
 namespace phongfit::fuzz {
 
@@ -40,6 +44,18 @@ private:
 inline const ScratchDir& scratch() {
     static const ScratchDir dir;
     return dir;
+}
+
+// readImage on the input written as `name`, whose extension picks the reader: a phongfit::Error is
+// the expected answer to a bad file; an image of the wrong shape is a bug.
+inline void readImageOrError(const std::uint8_t* data, std::size_t size, const std::string& name) {
+    const std::string path = scratch().write(name, data, size);
+    try {
+        const Image image = readImage(path);
+        if (image.width <= 0 || image.height <= 0 || image.rgb.size() != 3 * image.pixelCount())
+            std::abort();
+    } catch (const Error&) {
+    }
 }
 
 // The directory scene inputs resolve relative names in: the scratch directory, holding one small

@@ -4,19 +4,10 @@
 // an allocation over the fuzzer's limit.
 #include <cstddef>
 #include <cstdint>
-#include <cstdlib>
 
-#include "error.h"
 #include "fuzz_input.h"
-#include "image.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-    const std::string path = phongfit::fuzz::scratch().write("fuzz.pfm", data, size);
-    try {
-        const phongfit::Image image = phongfit::readImage(path);
-        if (image.width <= 0 || image.height <= 0 || image.rgb.size() != 3 * image.pixelCount())
-            std::abort();
-    } catch (const phongfit::Error&) {
-    }
+    phongfit::fuzz::readImageOrError(data, size, "fuzz.pfm");
     return 0;
 }
