@@ -247,6 +247,31 @@ TEST(SynthConfig, DrawnConfigDrawsColouredMaterialsUnderSixLights) {
     }
 }
 
+// The draw under the matrix's lights (README, "Drawn under the matrix's own lights") reads: 40
+// coloured materials drawn under the recovery matrix's ten lights and scenes, with their paths a
+// pixel, n log-uniform from 1 to 50000.
+TEST(SynthConfig, DrawnUnderMatrixLightsUsesTheMatrixScenes) {
+    const SynthConfig config = loadSynthConfig(PHONGFIT_CONFIGS_DIR "/drawn_matrix_lights.json");
+    const SynthConfig matrix = loadSynthConfig(PHONGFIT_CONFIGS_DIR "/matrix.json");
+    ASSERT_EQ(config.groups.size(), matrix.groups.size());
+    EXPECT_EQ(config.totalSamples(), 40);
+    for (std::size_t i = 0; i < config.groups.size(); ++i) {
+        const GroupConfig& g = config.groups[i];
+        const GroupConfig& m = matrix.groups[i];
+        EXPECT_EQ(g.name, m.name);
+        EXPECT_EQ(g.scenePaths, m.scenePaths) << g.name;
+        EXPECT_EQ(g.spp, m.spp) << g.name;
+        EXPECT_FALSE(g.grid) << g.name;
+        EXPECT_TRUE(g.colour) << g.name;
+        EXPECT_EQ(g.n.lo, 1) << g.name;
+        EXPECT_EQ(g.n.hi, 50000) << g.name;
+        for (const auto& [name, define] : m.defines) {
+            if (name == "width" || name == "height") continue;
+            EXPECT_EQ(g.defines.count(name), 1u) << g.name << " " << name;
+        }
+    }
+}
+
 // The third set outside the matrix (README, "Outside the matrix") reads: 3 lights x 4 exponents x
 // 3 materials, the exponents beyond every other set's up to the fitter's bound.
 TEST(SynthConfig, ThirdOutsideConfigReachesTheExponentBound) {
