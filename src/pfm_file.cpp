@@ -28,13 +28,15 @@ struct PfmHeader {
     std::size_t bytes = 0;  // the header's, up to and including the byte after the scale
 };
 
+Error pfmError(const std::string& path, const std::string& what) {
+    return Error(fmt::format("cannot read PFM image '{}': {}", path, what));
+}
+
 // Netpbm's whitespace: space, tab, newline, vertical tab, form feed, carriage return.
 bool isPfmSpace(char c) { return std::isspace(static_cast<unsigned char>(c)) != 0; }
 
 PfmHeader parseHeader(const std::string& path, const std::string& text) {
-    const auto bad = [&](const std::string& what) {
-        return Error(fmt::format("cannot read PFM image '{}': {}", path, what));
-    };
+    const auto bad = [&](const std::string& what) { return pfmError(path, what); };
     if (text.size() < 3 || text[0] != 'P' || (text[1] != 'F' && text[1] != 'f') ||
         !isPfmSpace(text[2]))
         throw bad("it does not start with \"PF\" (RGB) or \"Pf\" (grey)");
@@ -85,30 +87,29 @@ Image readPfm(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     std::error_code ec;
     const std::uintmax_t fileBytes = std::filesystem::file_size(path, ec);
-    if (!in || ec) throw Error(fmt::format("cannot read PFM image '{}': cannot open it", path));
+    if (!in || ec) throw pfmError(path, "cannot open it");
     std::string text(std::min<std::uintmax_t>(fileBytes, kMostHeaderBytes), '\0');
     in.read(text.data(), std::streamsize(text.size()));
     const PfmHeader h = parseHeader(path, text);
     const std::uintmax_t values = std::uintmax_t(h.width * h.height) * std::uintmax_t(h.channels);
     if (fileBytes - h.bytes != values * sizeof(float))
-        throw Error(
-            fmt::format("cannot read PFM image '{}': its header says {} x {} pixels of {} "
-                        "float{}, {} bytes, but {} bytes follow it",
-                        path, h.width, h.height, h.channels, h.channels > 1 ? "s" : "",
-                        values * sizeof(float), fileBytes - h.bytes));
-    std::vector<std::uint32_t> words(values);
-    in.seekg(std::streamoff(h.bytes));
-    in.read(reinterpret_cast<char*>(words.data()), std::streamsize(values * sizeof(float)));
-    if (!in) throw Error(fmt::format("cannot read PFM image '{}': I/O error", path));
-    if (h.bigEndian != (std::endian::native == std::endian::big))
-        for (std::uint32_t& w : words) w = __builtin_bswap32(w);
+        throw pfmError(path, fmt::format("its header says {} x {} pixels of {} float{}, {} bytes, "
+                                         "but {} bytes follow it",
+                                         h.width, h.height, h.channels, h.channels > 1 ? "s" : "",
+                                         values * sizeof(float), fileBytes - h.bytes));
     Image image(int(h.width), int(h.height));
     image.decoding = "PFM, linear";
-    for (int y = 0; y < image.height; ++y) {
+    // Row by row into the image, so that reading takes no more than the image itself.
+    const bool swap = h.bigEndian != (std::endian::native == std::endian::big);
+    std::vector<std::uint32_t> row(std::size_t(h.width) * std::size_t(h.channels));
+    in.seekg(std::streamoff(h.bytes));
+    for (int r = 0; r < image.height; ++r) {
+        in.read(reinterpret_cast<char*>(row.data()), std::streamsize(row.size() * sizeof(float)));
+        if (!in) throw pfmError(path, "I/O error");
+        if (swap)
+            for (std::uint32_t& w : row) w = __builtin_bswap32(w);
         // Rows are stored from the bottom up.
-        const std::uint32_t* row = words.data() + std::size_t(image.height - 1 - y) *
-                                                      std::size_t(image.width) *
-                                                      std::size_t(h.channels);
+        const int y = image.height - 1 - r;
         for (int x = 0; x < image.width; ++x) {
             Color<float> c;
             for (int k = 0; k < 3; ++k)
