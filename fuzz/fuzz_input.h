@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <string>
 
 #include "error.h"
@@ -46,15 +47,21 @@ inline const ScratchDir& scratch() {
     return dir;
 }
 
-// readImage on the input written as `name`, whose extension picks the reader: a phongfit::Error is
-// the expected answer to a bad file; an image of the wrong shape is a bug.
-inline void readImageOrError(const std::uint8_t* data, std::size_t size, const std::string& name) {
+// readImage on the input written as `name`, whose extension picks the reader, with each of
+// `options`: a phongfit::Error is the expected answer to a bad file; an image of the wrong shape
+// is a bug.
+inline void readImageOrError(const std::uint8_t* data, std::size_t size, const std::string& name,
+                             std::initializer_list<ReadOptions> options = {ReadOptions{}}) {
     const std::string path = scratch().write(name, data, size);
-    try {
-        const Image image = readImage(path);
-        if (image.width <= 0 || image.height <= 0 || image.rgb.size() != 3 * image.pixelCount())
-            std::abort();
-    } catch (const Error&) {
+    for (const ReadOptions& o : options) {
+        try {
+            const Image image = readImage(path, o);
+            if (image.width <= 0 || image.height <= 0 ||
+                image.rgb.size() != 3 * image.pixelCount() ||
+                (!image.noData.empty() && image.noData.size() != image.pixelCount()))
+                std::abort();
+        } catch (const Error&) {
+        }
     }
 }
 

@@ -35,28 +35,22 @@ void requireReadableFile(const std::string& path, const char* what) {
         throw Error(fmt::format("cannot read {} '{}': no such file", what, path));
 }
 
-Image readExr(const std::string& path) {
+// The image's frame: the display window with `displayWindow`, else the data window.
+Image readExr(const std::string& path, bool displayWindow) {
     try {
         requireExrWithinLimits(path);
         Imf::InputFile file(path.c_str());
-        const Imath::Box2i window = file.header().dataWindow();
-        Image image(window.max.x - window.min.x + 1, window.max.y - window.min.y + 1);
-        image.decoding = "EXR, linear";
+        const Imath::Box2i data = file.header().dataWindow();
+        const Imath::Box2i frame = displayWindow ? file.header().displayWindow() : data;
+        const std::int64_t width = std::int64_t(frame.max.x) - frame.min.x + 1;
+        const std::int64_t height = std::int64_t(frame.max.y) - frame.min.y + 1;
+        if (frame != data) requireExrFrameWithinLimits(path, width, height);
         const Imf::ChannelList& channels = file.header().channels();
         const char* names[3] = {"R", "G", "B"};
         int rgbCount = 0;
         for (const char* name : names) rgbCount += channels.findChannel(name) != nullptr;
-        Imf::FrameBuffer frame;
-        std::vector<float> grey;
-        if (rgbCount == 3) {
-            for (int c = 0; c < 3; ++c)
-                frame.insert(names[c],
-                             Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, window,
-                                              3 * sizeof(float), 3 * sizeof(float) * image.width));
-        } else if (rgbCount == 0 && channels.findChannel("Y")) {
-            grey.resize(image.pixelCount());
-            frame.insert("Y", Imf::Slice::Make(Imf::FLOAT, grey.data(), window));
-        } else {
+        const bool grey = rgbCount == 0 && channels.findChannel("Y");
+        if (rgbCount != 3 && !grey) {
             std::string present;
             for (auto it = channels.begin(); it != channels.end(); ++it)
                 present += fmt::format("{}{}", present.empty() ? "" : ", ", it.name());
@@ -65,10 +59,39 @@ Image readExr(const std::string& path) {
                             "(or a single Y for grey)",
                             path, present));
         }
-        file.setFrameBuffer(frame);
-        file.readPixels(window.min.y, window.max.y);
-        for (std::size_t i = 0; i < grey.size(); ++i)
-            std::fill_n(image.rgb.begin() + 3 * i, 3, grey[i]);
+        Image image(static_cast<int>(width), static_cast<int>(height));
+        image.decoding = "EXR, linear";
+        // The data the frame holds, read a row at a time (a row's slices have no y stride).
+        const int x0 = std::max(data.min.x, frame.min.x), x1 = std::min(data.max.x, frame.max.x);
+        const int y0 = std::max(data.min.y, frame.min.y), y1 = std::min(data.max.y, frame.max.y);
+        const int channelCount = grey ? 1 : 3;
+        std::vector<float> row(std::size_t(channelCount) *
+                               std::size_t(data.max.x - data.min.x + 1));
+        Imf::FrameBuffer buffer;
+        const std::size_t xStride = std::size_t(channelCount) * sizeof(float);
+        for (int c = 0; c < channelCount; ++c) {
+            // Where pixel (0, y) would be for every y (Slice::Make takes a y stride of 0 as none).
+            const std::intptr_t origin = reinterpret_cast<std::intptr_t>(row.data() + c) -
+                                         std::intptr_t(data.min.x) * std::intptr_t(xStride);
+            buffer.insert(grey ? "Y" : names[c],
+                          Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(origin), xStride, 0));
+        }
+        file.setFrameBuffer(buffer);
+        for (int y = y0; y <= y1 && x0 <= x1; ++y) {
+            file.readPixels(y, y);
+            for (int x = x0; x <= x1; ++x) {
+                const float* v = &row[std::size_t(channelCount) * std::size_t(x - data.min.x)];
+                float* p = &image.rgb[3 * image.index(x - frame.min.x, y - frame.min.y)];
+                for (int c = 0; c < 3; ++c) p[c] = v[grey ? 0 : c];
+            }
+        }
+        if (x0 > frame.min.x || x1 < frame.max.x || y0 > frame.min.y || y1 < frame.max.y) {
+            image.noData.assign(image.pixelCount(), 1);
+            for (int y = y0; y <= y1 && x0 <= x1; ++y)
+                std::fill_n(image.noData.begin() +
+                                std::ptrdiff_t(image.index(x0 - frame.min.x, y - frame.min.y)),
+                            x1 - x0 + 1, 0);
+        }
         return image;
     } catch (const Error&) {
         throw;
@@ -240,7 +263,9 @@ Image readImage(const std::string& path, const ReadOptions& options) {
                         ".png, .jpg, .jpeg, .tif, .tiff)",
                         path, ext));
     requireReadableFile(path, "image");
-    Image image = exr ? readExr(path) : pfm ? readPfm(path) : readLdr(path, options);
+    Image image = exr   ? readExr(path, options.exrDisplayWindow)
+                  : pfm ? readPfm(path)
+                        : readLdr(path, options);
     if (image.pixelCount() == 0) throw Error(fmt::format("image '{}' has no pixels", path));
     return image;
 }

@@ -34,6 +34,10 @@ struct Image {
     std::string decoding = "linear";
     // The curve integer values were decoded with (never Auto); none for float data.
     std::optional<Encoding> integerCurve;
+    // Per pixel: 1 where the file holds no value (an EXR framed in its display window, outside its
+    // data window: ReadOptions::exrDisplayWindow); such pixels read 0. Empty where every pixel
+    // has a value.
+    std::vector<std::uint8_t> noData;
 
     Image() = default;
     // Black, nothing clipped.
@@ -54,9 +58,15 @@ struct Image {
 struct ReadOptions {
     Encoding encoding = Encoding::Auto;
     double gamma = 2.2;  // for Encoding::Gamma
+    // EXR: the image is the file's display window, the frame the renderer rendered, with the data
+    // window's pixels in their place (a crop window's render, an overscan): pixels it does not
+    // cover are flagged in Image::noData, and data outside the frame is dropped. Otherwise the
+    // image is the data window alone, as Mitsuba and pbrt read an environment map.
+    bool exrDisplayWindow = false;
 };
 
-// By extension (case-insensitive): .exr via OpenEXR (R, G, B, or a single Y read as grey);
+// By extension (case-insensitive): .exr via OpenEXR (R, G, B, or a single Y read as grey; its data
+// window, or its display window with ReadOptions::exrDisplayWindow);
 // .png, .jpg, .jpeg, .tif, .tiff via OpenCV (8- or 16-bit, grey or colour; alpha ignored; 32-bit
 // float TIFF as linear). Throws Error naming the file if it is missing or unreadable, has an
 // unknown extension, no pixels, or lacks a colour channel.

@@ -390,6 +390,10 @@ void requireLdrWithinLimits(const std::string& path, const char* what, bool pngO
     if (tiff) requireTiffWithinLimits(path, what, size);
 }
 
+void requireExrFrameWithinLimits(const std::string& path, std::int64_t width, std::int64_t height) {
+    requireDeclaredPixels(path, width, height, fileBytes(path), kMaxPixelsPerByte);
+}
+
 void requireExrWithinLimits(const std::string& path) {
     const std::int64_t fileSize = fileBytes(path);
     const ExrHeaders headers(path);

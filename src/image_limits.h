@@ -37,6 +37,11 @@ constexpr std::int64_t kMaxExrHeaderAllocation = std::int64_t(64) << 20;
 // cannot parse the header, and when part 0 holds deep data (not an image phongfit reads).
 void requireExrWithinLimits(const std::string& path);
 
+// The frame an EXR's image is read in where it is not its data window (its display window,
+// ReadOptions::exrDisplayWindow): its pixels are allocated too, against the same limits as
+// declared ones. Throws Error naming the file, the size and the limit.
+void requireExrFrameWithinLimits(const std::string& path, std::int64_t width, std::int64_t height);
+
 // The same for PNG, JPEG and TIFF: throws Error unless the file's first bytes are those of one of
 // these formats (only PNG when `pngOnly`) and its header's declared size is within the limits.
 // Call before cv::imread: OpenCV picks its decoder by content, not by name (some decoders it

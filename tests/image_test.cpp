@@ -16,6 +16,7 @@
 #include <random>
 
 #include "error.h"
+#include "raw_exr.h"
 #include "temp_dir.h"
 
 namespace phongfit {
@@ -61,6 +62,20 @@ protected:
         out.writePixels(height);
     }
 
+    // A float RGB EXR framed in `display` whose data window `data` holds, at pixel (x, y), the
+    // values of placedValue: each value says where it was written.
+    void writeWindowedExr(const std::string& file, const Imath::Box2i& display,
+                          const Imath::Box2i& data) {
+        Image pixels(data.max.x - data.min.x + 1, data.max.y - data.min.y + 1);
+        for (int y = 0; y < pixels.height; ++y)
+            for (int x = 0; x < pixels.width; ++x)
+                for (int c = 0; c < 3; ++c)
+                    pixels.rgb[3 * pixels.index(x, y) + c] =
+                        placedValue(x + data.min.x, y + data.min.y, c);
+        test::writeRawExr(pixels, display, data, file);
+    }
+    static float placedValue(int x, int y, int c) { return float(1000 * y + x) + 0.1f * float(c); }
+
     const test::TempDir temp_{"image"};
     const fs::path& dir_ = temp_.path();
 };
@@ -98,6 +113,73 @@ TEST_F(ImageTest, ExrSingleLuminanceChannelIsReadAsGrey) {
     const Image image = readImage(path("y.exr"));
     ASSERT_EQ(image.pixelCount(), 12u);
     for (float v : image.rgb) EXPECT_EQ(v, 0.25f);
+}
+
+// A crop window's render (pbrt's cropwindow): the data window inside the display window.
+TEST_F(ImageTest, ExrIsReadInItsDataWindowOrFramedInItsDisplayWindow) {
+    const Imath::Box2i display({0, 0}, {5, 4}), data({2, 1}, {4, 3});
+    writeWindowedExr(path("crop.exr"), display, data);
+    const Image cropped = readImage(path("crop.exr"));
+    ASSERT_EQ(cropped.width, 3);
+    ASSERT_EQ(cropped.height, 3);
+    EXPECT_TRUE(cropped.noData.empty());
+    for (int y = 0; y < 3; ++y)
+        for (int x = 0; x < 3; ++x)
+            for (int c = 0; c < 3; ++c)
+                EXPECT_EQ(cropped.at(x, y)[c], placedValue(x + 2, y + 1, c));
+
+    ReadOptions framed;
+    framed.exrDisplayWindow = true;
+    const Image image = readImage(path("crop.exr"), framed);
+    ASSERT_EQ(image.width, 6);
+    ASSERT_EQ(image.height, 5);
+    ASSERT_EQ(image.noData.size(), 30u);
+    for (int y = 0; y < 5; ++y)
+        for (int x = 0; x < 6; ++x) {
+            const bool inside = x >= 2 && x <= 4 && y >= 1 && y <= 3;
+            EXPECT_EQ(image.noData[image.index(x, y)], inside ? 0 : 1) << x << ", " << y;
+            for (int c = 0; c < 3; ++c)
+                EXPECT_EQ(image.at(x, y)[c], inside ? placedValue(x, y, c) : 0.0f);
+        }
+}
+
+// An overscan (data beyond the frame, at negative coordinates too) is cut to the frame; a frame
+// that does not start at 0 starts the image.
+TEST_F(ImageTest, ExrDataBeyondTheDisplayWindowIsCutToIt) {
+    const Imath::Box2i display({-3, 2}, {4, 6}), data({-5, -1}, {7, 8});
+    writeWindowedExr(path("overscan.exr"), display, data);
+    ReadOptions framed;
+    framed.exrDisplayWindow = true;
+    const Image image = readImage(path("overscan.exr"), framed);
+    ASSERT_EQ(image.width, 8);
+    ASSERT_EQ(image.height, 5);
+    EXPECT_TRUE(image.noData.empty());
+    for (int y = 0; y < 5; ++y)
+        for (int x = 0; x < 8; ++x)
+            for (int c = 0; c < 3; ++c) EXPECT_EQ(image.at(x, y)[c], placedValue(x - 3, y + 2, c));
+}
+
+TEST_F(ImageTest, ExrDataWindowOutsideItsDisplayWindowLeavesEveryPixelWithoutData) {
+    writeWindowedExr(path("apart.exr"), Imath::Box2i({0, 0}, {3, 2}),
+                     Imath::Box2i({10, 0}, {12, 2}));
+    ReadOptions framed;
+    framed.exrDisplayWindow = true;
+    const Image image = readImage(path("apart.exr"), framed);
+    ASSERT_EQ(image.pixelCount(), 12u);
+    EXPECT_EQ(image.noData, std::vector<std::uint8_t>(12, 1));
+    for (float v : image.rgb) EXPECT_EQ(v, 0.0f);
+}
+
+// A few bytes of data framed in a display window of 2^28 pixels: refused before it is allocated.
+TEST_F(ImageTest, ExrDisplayWindowIsWithinTheImageLimits) {
+    writeWindowedExr(path("vast.exr"), Imath::Box2i({0, 0}, {16383, 16383}),
+                     Imath::Box2i({0, 0}, {1, 1}));
+    EXPECT_EQ(readImage(path("vast.exr")).pixelCount(), 4u);
+    ReadOptions framed;
+    framed.exrDisplayWindow = true;
+    const std::string message = errorOf([&] { readImage(path("vast.exr"), framed); });
+    EXPECT_NE(message.find("vast.exr"), std::string::npos) << message;
+    EXPECT_NE(message.find("16384x16384"), std::string::npos) << message;
 }
 
 TEST_F(ImageTest, Png8BitIsDecodedWithTheSrgbCurveInRgbOrder) {
