@@ -65,7 +65,8 @@ std::vector<int> fittedBsdfs(const Scene& scene, const std::string& scenePath,
     return fitted;
 }
 
-// The image as an observation: non-finite, masked and clipped pixels left out and counted.
+// The image as an observation: pixels without data, non-finite, masked and clipped ones left out
+// and counted.
 void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
              const std::vector<std::uint8_t>* mask) {
     Observation& o = v.observation;
@@ -75,7 +76,10 @@ void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
     o.valid.assign(image.pixelCount(), 1);
     for (std::size_t p = 0; p < image.pixelCount(); ++p) {
         const float* c = &o.rgb[3 * p];
-        if (!std::isfinite(c[0]) || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
+        if (!image.noData.empty() && image.noData[p]) {
+            o.valid[p] = 0;
+            ++v.noData;
+        } else if (!std::isfinite(c[0]) || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
             if (!in.ignoreNonFinite)
                 throw Error(
                     fmt::format("{}: pixel ({}, {}) is not finite (use --ignore-nonfinite "
@@ -94,8 +98,10 @@ void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
         }
     }
     if (std::none_of(o.valid.begin(), o.valid.end(), [](std::uint8_t x) { return x != 0; }))
-        throw Error(fmt::format("{}: every pixel is masked, clipped or not finite: nothing to fit",
-                                v.imagePath));
+        throw Error(
+            fmt::format("{}: every pixel is masked, clipped, not finite or outside the "
+                        "EXR's data window: nothing to fit",
+                        v.imagePath));
 }
 
 // The image's render settings: from `phongfit render`'s sidecar IMAGE.json where there is one,
@@ -164,7 +170,10 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
     } else {
         v.depthNote = "nothing (path tracing at the scene's depth)";
     }
-    const Image image = readImage(v.imagePath, in.decoding);
+    // Framed as rendered: a crop window's EXR fits on the pixels it holds.
+    ReadOptions read = in.decoding;
+    read.exrDisplayWindow = true;
+    const Image image = readImage(v.imagePath, read);
     const SensorDesc& film = scene.sensor;
     if (image.width != film.width || image.height != film.height)
         throw Error(fmt::format("{}: image is {}x{} but the film of {} is {}x{}", v.imagePath,
@@ -444,6 +453,7 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
                                    {"pixels_masked", v.masked},
                                    {"pixels_off_the_materials", v.offMaterials},
                                    {"pixels_non_finite", v.nonFinite},
+                                   {"pixels_without_data", v.noData},
                                    {"image_rendered_as", renderedAsJson(v, recording)}});
     }
     fs::create_directories(dir);

@@ -51,7 +51,9 @@ struct SceneView {
     // (FitOptions::extendedLights).
     bool deltaLights = false;
     Observation observation;
-    std::size_t clipped = 0, masked = 0, nonFinite = 0;
+    // Pixels left out: clipped, masked, not finite, and outside the EXR's data window
+    // (Image::noData).
+    std::size_t clipped = 0, masked = 0, nonFinite = 0, noData = 0;
     // Per pixel: 1 where the ray through its centre first meets a fitted material
     // (Renderer::bsdfSeen); where RecordOptions::directSpp applies.
     std::vector<std::uint8_t> direct;

@@ -114,10 +114,11 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
                          "ks; held where the start materials match their brightness, or as far "
                          "above as kd + ks <= 1 needs)"
                        : "");
-    std::size_t indirect = 0;
-    for (const SceneView& v : problem.views) indirect += v.offMaterials;
+    std::size_t indirect = 0, noData = 0;
+    for (const SceneView& v : problem.views) indirect += v.offMaterials, noData += v.noData;
     const std::string leftOut =
         problem.views[0].depthNote +
+        (noData > 0 ? fmt::format("; {} pixels outside the image's data window", noData) : "") +
         (indirect > 0 ? fmt::format("; {} pixels off the fitted materials (seeing them only "
                                     "through other surfaces, if at all)",
                                     indirect)

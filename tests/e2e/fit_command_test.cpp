@@ -10,12 +10,15 @@
 #include <array>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
 #include "image.h"
 #include "precision_claim.h"
+#include "raw_exr.h"
 #include "subprocess.h"
 
 namespace phongfit {
@@ -76,6 +79,65 @@ TEST_F(FitCommand, APfmImageFitsAsItsExr) {
             nlohmann::json::parse(std::ifstream(out + "/fit.json"))["materials"];
     }
     EXPECT_EQ(materials[1], materials[0]);
+}
+
+// `image` as a float RGB EXR framed in its own size, with data window `data`: the image's pixels
+// where the two meet, NaN beyond the frame (overscan).
+void writeFramedExr(const Image& image, const Imath::Box2i& data, const std::string& file) {
+    Image pixels(data.max.x - data.min.x + 1, data.max.y - data.min.y + 1);
+    std::fill(pixels.rgb.begin(), pixels.rgb.end(), std::numeric_limits<float>::quiet_NaN());
+    for (int y = data.min.y; y <= data.max.y; ++y)
+        for (int x = data.min.x; x <= data.max.x; ++x)
+            if (x >= 0 && x < image.width && y >= 0 && y < image.height)
+                pixels.set(x - data.min.x, y - data.min.y, image.at(x, y));
+    test::writeRawExr(pixels, Imath::Box2i({0, 0}, {image.width - 1, image.height - 1}), data,
+                      file);
+}
+
+// An EXR is placed in its display window, the frame the renderer rendered: an overscan fits as the
+// frame alone (its NaN beyond the frame never read), and a crop window's render fits on the pixels
+// it holds, the others left out and counted.
+TEST_F(FitCommand, AnExrFitsInItsDisplayWindow) {
+    const Image image = readImage(path("sphere.exr"));
+    writeFramedExr(image, Imath::Box2i({-2, -3}, {kSize + 1, kSize + 2}), path("overscan.exr"));
+    constexpr int kCropX = 16;  // the crop keeps the highlight (the light is up and to the right)
+    writeFramedExr(image, Imath::Box2i({kCropX, 0}, {kSize - 1, kSize - 1}), path("crop.exr"));
+    std::map<std::string, nlohmann::json> reports;
+    std::map<std::string, std::string> outs;
+    for (const std::string name : {"sphere", "overscan", "crop"}) {
+        const auto r = run({"fit", "--view", kSphere + ":" + path(name + ".exr"), "--material",
+                            "sphere", "--n", "300", "-o", path("framed_" + name), "--quiet"});
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        reports[name] = nlohmann::json::parse(std::ifstream(path("framed_" + name + "/fit.json")));
+        outs[name] = r.out;
+    }
+    EXPECT_EQ(reports["overscan"]["materials"], reports["sphere"]["materials"]);
+    EXPECT_EQ(reports["overscan"]["views"][0]["pixels_without_data"], 0);
+    EXPECT_EQ(outs["overscan"].find("data window"), std::string::npos) << outs["overscan"];
+
+    const auto& crop = reports["crop"];
+    EXPECT_EQ(crop["views"][0]["pixels_without_data"], kCropX * kSize);
+    EXPECT_NE(outs["crop"].find(std::to_string(kCropX * kSize) +
+                                " pixels outside the image's data window"),
+              std::string::npos)
+        << outs["crop"];
+    EXPECT_LT(crop["pixels_used"], reports["sphere"]["pixels_used"]);
+    // The scene's own parameters, each within 3 of the crop's standard errors.
+    const auto& m = crop["materials"]["sphere"];
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_LE(std::abs(m["kd"][c].get<double>() - 0.5), 3 * m["kd_std"][c].get<double>());
+        EXPECT_LE(std::abs(m["ks"][c].get<double>() - 0.3), 3 * m["ks_std"][c].get<double>());
+    }
+    EXPECT_LE(std::abs(m["n"].get<double>() - 30), 3 * m["n_std"].get<double>());
+
+    // Data wholly beyond the frame: nothing to fit, one line.
+    writeFramedExr(image, Imath::Box2i({kSize, 0}, {kSize + 3, 3}), path("apart.exr"));
+    const auto r = run({"fit", "--view", kSphere + ":" + path("apart.exr"), "--material", "sphere",
+                        "-o", path("framed_apart"), "--quiet"});
+    EXPECT_NE(r.exitCode, 0);
+    EXPECT_NE(r.err.find("outside the EXR's data window: nothing to fit"), std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(path("framed_apart")));
 }
 
 TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
