@@ -114,15 +114,23 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
                          "ks; held where the start materials match their brightness, or as far "
                          "above as kd + ks <= 1 needs)"
                        : "");
-    std::size_t indirect = 0, noData = 0;
-    for (const SceneView& v : problem.views) indirect += v.offMaterials, noData += v.noData;
-    const std::string leftOut =
-        problem.views[0].depthNote +
-        (noData > 0 ? fmt::format("; {} pixels outside the image's data window", noData) : "") +
-        (indirect > 0 ? fmt::format("; {} pixels off the fitted materials (seeing them only "
-                                    "through other surfaces, if at all)",
-                                    indirect)
-                      : "");
+    // The pixels left out, by why, where any were (fit.json has each view's).
+    std::size_t noData = 0, masked = 0, clipped = 0, nonFinite = 0, indirect = 0;
+    for (const SceneView& v : problem.views) {
+        noData += v.noData, masked += v.masked, clipped += v.clipped;
+        nonFinite += v.nonFinite, indirect += v.offMaterials;
+    }
+    std::string leftOut = problem.views[0].depthNote;
+    for (const auto& [count, why] : {
+             std::pair{noData, "outside the image's data window"},
+             std::pair{masked, "masked"},
+             std::pair{clipped, "clipped (at the format's maximum or --saturation)"},
+             std::pair{nonFinite, "not finite (--ignore-nonfinite)"},
+             std::pair{indirect,
+                       "off the fitted materials (seeing them only through other "
+                       "surfaces, if at all)"},
+         })
+        if (count > 0) leftOut += fmt::format("; {} pixels {}", count, why);
     fmt::print("rmse {:.5g} after {} round{}{} in {:.2f} s; left out: {} -> {}\n", result.rmse,
                result.rounds.size(), result.rounds.size() == 1 ? "" : "s",
                result.converged ? fmt::format(" (converged{})", convergedHow(result))

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -138,6 +139,29 @@ TEST_F(FitCommand, AnExrFitsInItsDisplayWindow) {
     EXPECT_NE(r.err.find("outside the EXR's data window: nothing to fit"), std::string::npos)
         << r.err;
     EXPECT_FALSE(fs::exists(path("framed_apart")));
+}
+
+// Pixels left out of a fit are counted by why, in fit.json and on the console: NaN pixels (with
+// --ignore-nonfinite) and masked ones.
+TEST_F(FitCommand, LeftOutPixelsAreCountedByWhy) {
+    Image image = readImage(path("sphere.exr"));
+    for (int x : {18, 19, 20}) image.set(x, 20, Color<float>::Constant(std::nanf("")));
+    test::writeRawExr(image, path("nan.exr"));
+    cv::Mat mask(kSize, kSize, CV_8U, cv::Scalar(255));
+    mask(cv::Rect(10, 10, 4, 4)).setTo(0);
+    cv::imwrite(path("mask.png"), mask);
+    const auto r =
+        run({"fit", "--view", kSphere + ":" + path("nan.exr"), "--material", "sphere", "--n", "300",
+             "--ignore-nonfinite", "--mask", path("mask.png"), "-o", path("left_out"), "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const auto view = nlohmann::json::parse(std::ifstream(path("left_out/fit.json")))["views"][0];
+    EXPECT_EQ(view["pixels_non_finite"], 3);
+    EXPECT_EQ(view["pixels_masked"], 16);
+    EXPECT_EQ(view["pixels_clipped"], 0);
+    EXPECT_NE(r.out.find("; 16 pixels masked; 3 pixels not finite (--ignore-nonfinite)"),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(r.out.find("clipped"), std::string::npos) << r.out;
 }
 
 TEST_F(FitCommand, WritesReportFittedSceneAndComparison) {
