@@ -572,7 +572,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             probed = result;
             result.converged = false;
             result.stopReason = "rounds";
-            probePathFactor = kProbePaths;
+            probePathFactor = firstProbePaths(out.materials, pooledFactor, round + 2 == maxRounds);
             retryPathFactor = probePaths(out.materials, pooledFactor);
             probeStart = sharper;
             growth = probePathFactor / recordFactor;

@@ -59,6 +59,10 @@ double probePaths(const std::vector<MaterialFit>& converged, double pathFactor) 
     return paths;
 }
 
+double firstProbePaths(const std::vector<MaterialFit>& converged, double pathFactor, bool last) {
+    return last ? probePaths(converged, pathFactor) : kProbePaths;
+}
+
 bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe) {
     for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s)
         if (probed(converged[s]) && !probe[s].isUnconstrained("n") &&

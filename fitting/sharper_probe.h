@@ -42,6 +42,11 @@ std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& material
 // the rounds'.
 double probePaths(const std::vector<MaterialFit>& converged, double pathFactor);
 
+// The first probe round's paths: kProbePaths, or where it is the fit's `last` round, with no
+// second probe after it, probePaths' (a probe at half the paths that could not tell left the
+// converged lobe widened to the bound).
+double firstProbePaths(const std::vector<MaterialFit>& converged, double pathFactor, bool last);
+
 // Whether each probed lobe came back: the probe round tells the converged n from its own start
 // (3 standard errors of log n short of the way between them, and below n) and put its n nearer the
 // converged n than the start (in log n), or within 3 of its own standard errors of it; or the

@@ -95,6 +95,11 @@ TEST(SharperProbe, ASecondProbeRecordsThePathsToTellARoughLobeFromItsStart) {
     EXPECT_TRUE(probeTold({weak}, {lobe(6.7, 0.5)}));
     EXPECT_TRUE(probeTold({weak}, {held}));
     EXPECT_FALSE(probeTold({lobe(1000, 10), weak}, {lobe(4000, 10), lobe(6.7, 4.4)}));
+    // The first probe asks only where n goes, unless it is the last round: no second probe can
+    // follow it there.
+    EXPECT_EQ(firstProbePaths({weak}, 32, false), kProbePaths);
+    EXPECT_EQ(firstProbePaths({weak}, 32, true), paths);
+    EXPECT_EQ(firstProbePaths({lobe(1000, 10)}, 32, true), kProbePaths);
 }
 
 // A probe from 6000 left in the last round at n 5000 +- 1000 widens the converged n 1500 +- 100
