@@ -84,6 +84,9 @@ struct SensorDesc {
     enum class Filter { Box, Gaussian };
     Filter filter = Filter::Box;
     double gaussianStddev = 0.5;  // pixels, Mitsuba's default
+    // The film names its <rfilter>. Where it does not, Mitsuba 0.6 filters with a Gaussian and
+    // phongfit with a box: an image from Mitsuba then misstates its scene.
+    bool filterNamed = false;
 };
 
 struct IntegratorDesc {

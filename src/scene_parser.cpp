@@ -269,6 +269,7 @@ private:
         std::vector<pugi::xml_node> nested;
         Params p = collect(n, {}, nested);
         SensorDesc& sensor = scene_.sensor;
+        sensor.filterNamed = true;
         if (type == "box") {
             sensor.filter = SensorDesc::Filter::Box;
         } else {

@@ -19,7 +19,7 @@
 #include "memory_plan.h"
 #include "path_growth.h"
 #include "path_importance.h"
-#include "phong_sampler.h"
+#include "render_sidecar.h"
 #include "scene_parser.h"
 #include "scene_writer.h"
 
@@ -104,48 +104,6 @@ void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
                         v.imagePath));
 }
 
-// The image's render settings: from `phongfit render`'s sidecar IMAGE.json where there is one,
-// else the scene's sampler and sampleCount.
-SceneView::RenderedAs renderedAs(const std::string& imagePath, const SensorDesc& film) {
-    SceneView::RenderedAs as{film.sampleCount, film.pixelSampler, "mixture", true, "scene"};
-    const fs::path sidecar = imagePath + ".json";
-    if (!fs::exists(sidecar)) return as;
-    const nlohmann::json j = nlohmann::json::parse(std::ifstream(sidecar), nullptr, false);
-    const auto fail = [&](const std::string& what) {
-        return Error(
-            fmt::format("{}: {} (the settings `phongfit render` writes beside an image: "
-                        "spp, pixel_sampler, sampler, mis)",
-                        sidecar.string(), what));
-    };
-    if (!j.is_object()) throw fail("not a JSON object");
-    if (!j.contains("spp")) return as;
-    if (!j["spp"].is_number_integer() || j["spp"].get<long long>() < 0 ||
-        j["spp"].get<long long>() > (1 << 20))
-        throw fail(
-            fmt::format("spp {} is not a whole number in [0, {}]", j["spp"].dump(), 1 << 20));
-    as.spp = j["spp"].get<int>();
-    as.source = sidecar.string();
-    // A name from `names`, where the sidecar has `key`.
-    const auto named = [&](const char* key, const std::vector<std::string>& names,
-                           std::string& out) {
-        if (!j.contains(key)) return;
-        if (!j[key].is_string() ||
-            std::find(names.begin(), names.end(), j[key].get<std::string>()) == names.end())
-            throw fail(
-                fmt::format("{} {} (allowed: {})", key, j[key].dump(), fmt::join(names, ", ")));
-        out = j[key].get<std::string>();
-    };
-    std::string pixelSampler = pixelSamplerName(as.pixelSampler);
-    named("pixel_sampler", pixelSamplerNames(), pixelSampler);
-    as.pixelSampler = pixelSamplerType(pixelSampler);
-    named("sampler", phongSamplerNames(), as.sampler);
-    if (j.contains("mis")) {
-        if (!j["mis"].is_boolean()) throw fail("mis is not true or false");
-        as.mis = j["mis"].get<bool>();
-    }
-    return as;
-}
-
 SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
                    const std::vector<std::uint8_t>* mask) {
     SceneView v;
@@ -159,7 +117,8 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
         std::all_of(scene.emitters.begin(), scene.emitters.end(), [](const EmitterDesc& e) {
             return e.type == EmitterDesc::Type::Point || e.type == EmitterDesc::Type::Directional;
         });
-    if (directLightIsExact(scene)) {
+    const bool directExact = directLightIsExact(scene);
+    if (directExact) {
         v.maxDepth = 2;
         v.deltaLightsOnly = v.deltaLights;
         v.depthNote =
@@ -179,8 +138,9 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
         throw Error(fmt::format("{}: image is {}x{} but the film of {} is {}x{}", v.imagePath,
                                 image.width, image.height, v.scenePath, film.width, film.height));
     observe(v, image, in, mask);
-    v.renderedAs = renderedAs(v.imagePath, film);
     v.renderer = std::make_unique<Renderer>(std::move(scene));
+    v.renderedAs = readRenderedAs(v.imagePath, v.renderer->scene(),
+                                  v.renderer->effectiveMaxDepth(-2), directExact);
     const std::vector<int> seen = v.renderer->bsdfSeen(0);
     v.direct = seesAny(seen, v.fittedBsdfs);
     v.slotSeen.assign(v.fittedBsdfs.size(), false);
@@ -409,7 +369,7 @@ namespace {
 
 // What fit.json says of a view's image noise as rendered (FitOptions::renderedNoise).
 nlohmann::json renderedAsJson(const SceneView& v, const SceneRecording& recording) {
-    const SceneView::RenderedAs& as = v.renderedAs;
+    const RenderedAs& as = v.renderedAs;
     const int spp = imageSpp(v, recording);
     if (spp == 0) return "without noise";
     return {{"spp", spp},
@@ -444,17 +404,19 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
     };
     report["area_lights"] = any(ringed) ? "rings" : any(emitting) ? "sampled" : "none";
     for (const SceneView& v : problem.views) {
-        report["views"].push_back({{"scene", v.scenePath},
-                                   {"image", v.imagePath},
-                                   {"area_lights", areaLights(v)},
-                                   {"max_depth", v.renderer->effectiveMaxDepth(v.maxDepth)},
-                                   {"left_out", v.depthNote},
-                                   {"pixels_clipped", v.clipped},
-                                   {"pixels_masked", v.masked},
-                                   {"pixels_off_the_materials", v.offMaterials},
-                                   {"pixels_non_finite", v.nonFinite},
-                                   {"pixels_without_data", v.noData},
-                                   {"image_rendered_as", renderedAsJson(v, recording)}});
+        report["views"].push_back(
+            {{"scene", v.scenePath},
+             {"image", v.imagePath},
+             {"area_lights", areaLights(v)},
+             {"max_depth", v.renderer->effectiveMaxDepth(v.maxDepth)},
+             {"left_out", v.depthNote},
+             {"pixels_clipped", v.clipped},
+             {"pixels_masked", v.masked},
+             {"pixels_off_the_materials", v.offMaterials},
+             {"pixels_non_finite", v.nonFinite},
+             {"pixels_without_data", v.noData},
+             {"pixel_filter", pixelFilterReport(v.renderer->scene().sensor, v.renderedAs)},
+             {"image_rendered_as", renderedAsJson(v, recording)}});
     }
     fs::create_directories(dir);
     const fs::path out(dir);

@@ -13,6 +13,7 @@
 
 #include "fitter.h"
 #include "image.h"
+#include "render_sidecar.h"
 #include "renderer.h"
 
 namespace phongfit {
@@ -62,16 +63,7 @@ struct SceneView {
     // Left out: pixels whose footprint is off every fitted material, where the materials are seen
     // directly (loadSceneFit): they see them only through other surfaces, if at all.
     std::size_t offMaterials = 0;
-    // How the image was rendered, where no pixel but its own shows a pixel's noise
-    // (FitOptions::renderedNoise): the scene's sampler and sampleCount, or what `phongfit render`
-    // wrote beside the image (IMAGE.json: spp, pixel_sampler, sampler, mis).
-    struct RenderedAs {
-        int spp = 0;  // 0: an image without noise
-        PixelSamplerType pixelSampler = PixelSamplerType::Sobol;
-        std::string sampler = "mixture";
-        bool mis = true;
-        std::string source;  // "scene" or the sidecar's path
-    } renderedAs;
+    RenderedAs renderedAs;  // how the image was rendered (render_sidecar.h)
 };
 
 struct SceneFitProblem {

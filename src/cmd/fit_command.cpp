@@ -96,6 +96,7 @@ void runSceneFit(const FitCli& a) {
     if (!a.ks.empty()) in.ks = parseColorOption(a.ks, "--ks");
     in.n = a.n;
     const SceneFitProblem problem = loadSceneFit(in);
+    printSceneWarnings(problem);
     const SceneRecording recording{a.spp,         a.directSpp,          a.seed,    a.threads,
                                    a.adaptiveSpp, !a.sampledAreaLights, a.imageSpp};
     if (!a.quiet)

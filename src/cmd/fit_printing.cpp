@@ -99,6 +99,17 @@ std::string unconstrainedNote(const MaterialFit& m) {
     return fmt::format("  (unconstrained, {})", note);
 }
 
+void printSceneWarnings(const SceneFitProblem& problem) {
+    for (const SceneView& v : problem.views)
+        if (!v.renderer->scene().sensor.filterNamed && !v.renderedAs.filterKnown)
+            fmt::print(
+                "warning: {}: the film names no <rfilter>, so {} is fitted as rendered with a box "
+                "pixel filter, phongfit's default; Mitsuba 0.6's is a Gaussian (stddev 0.5 "
+                "pixels), and an image filtered so but fitted as a box gives a confidently wrong "
+                "lobe: name the image's filter\n",
+                v.scenePath, v.imagePath);
+}
+
 void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,
                    const std::string& dir) {
     for (std::size_t s = 0; s < result.materials.size(); ++s) {

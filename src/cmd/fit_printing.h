@@ -8,6 +8,10 @@
 
 namespace phongfit {
 
+// Before the fit: a warning per view whose pixel filter is phongfit's default (the film names no
+// <rfilter>, and no sidecar says what the image was rendered with), where Mitsuba's differs.
+void printSceneWarnings(const SceneFitProblem& problem);
+
 // One line per round on stderr, naming the materials: rmse, iterations, time, memory, values.
 void printRound(const FitRound& round, const SceneFitProblem& problem, bool fitExposure);
 

@@ -13,6 +13,7 @@
 #include "image.h"
 #include "interrupt.h"
 #include "phong_sampler.h"
+#include "render_sidecar.h"
 #include "renderer.h"
 #include "scene_parser.h"
 
@@ -70,6 +71,7 @@ void runRender(const RenderArgs& args) {
                               renderer.scene().sensor.pixelSampler))},
         {"mis", args.options.mis},
         {"max_depth", renderer.effectiveMaxDepth(args.options.maxDepth)},
+        {"pixel_filter", pixelFilterJson(renderer.scene().sensor)},
         {"threads", threads},
         {"width", result.width},
         {"height", result.height},

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -371,6 +372,66 @@ TEST_F(FitCommand, DemoRendersFitsBackAndPrintsTheErrors) {
         EXPECT_NE(r.out.find(row), std::string::npos) << r.out;
 }
 
+// The pixel filter an image was rendered with is its scene's: `render`'s sidecar says which, and a
+// scene that names another is refused (fitted as a box, a Gaussian-filtered sphere's n comes out
+// 20 standard errors low, "converged"). Where neither the film nor a sidecar names it, the fit
+// takes phongfit's box and warns: Mitsuba's default is a Gaussian.
+TEST_F(FitCommand, TheImagesPixelFilterIsTheScenesOrTheFitWarns) {
+    std::ifstream in(kSphere);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string box = R"(<rfilter type="box"/>)";
+    ASSERT_NE(text.find(box), std::string::npos);
+    const auto scene = [&](const std::string& name, const std::string& filter) {
+        std::string s = text;
+        s.replace(s.find(box), box.size(), filter);
+        std::ofstream(path(name)) << s;
+        return path(name);
+    };
+    const std::string gaussian = scene("gaussian.xml", R"(<rfilter type="gaussian"/>)");
+    const std::string unnamed = scene("unnamed.xml", "");
+    ASSERT_EQ(
+        run({"render", gaussian, "-o", path("gaussian.exr"), "--spp", "16", "--quiet"}).exitCode,
+        0);
+    fs::copy_file(path("sphere.exr"), path("bare.exr"));  // no sidecar
+    const auto fit = [&](const std::string& view, const std::string& out) {
+        return run({"fit", "--view", view, "--material", "sphere", "--rounds", "1", "-o", path(out),
+                    "--quiet"});
+    };
+    const auto filter = [&](const std::string& out) {
+        return nlohmann::json::parse(
+            std::ifstream(path(out + "/fit.json")))["views"][0]["pixel_filter"];
+    };
+
+    auto r = fit(gaussian + ":" + path("gaussian.exr"), "as_rendered");
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+    EXPECT_EQ(filter("as_rendered"),
+              nlohmann::json(
+                  {{"type", "gaussian"}, {"stddev", 0.5}, {"from", path("gaussian.exr.json")}}));
+
+    r = fit(kSphere + ":" + path("gaussian.exr"), "as_box");
+    EXPECT_NE(r.exitCode, 0);
+    EXPECT_NE(r.err.find("gaussian.exr.json: the image was rendered with a Gaussian pixel filter "
+                         "(stddev 0.5 pixels) but " +
+                         kSphere + " says a box pixel filter"),
+              std::string::npos)
+        << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(path("as_box")));
+
+    r = fit(unnamed + ":" + path("bare.exr"), "unnamed");
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("warning: " + unnamed + ": the film names no <rfilter>"),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(filter("unnamed"), nlohmann::json({{"type", "box"}, {"from", "default"}}));
+
+    r = fit(kSphere + ":" + path("bare.exr"), "named");
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+    EXPECT_EQ(filter("named"), nlohmann::json({{"type", "box"}, {"from", "scene"}}));
+}
+
 TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
     cv::imwrite(path("mask_small.png"), cv::Mat(kSize / 2, kSize, CV_8U, cv::Scalar(255)));
     cv::imwrite(path("mask_zero.png"), cv::Mat(kSize, kSize, CV_8U, cv::Scalar(0)));
@@ -430,6 +491,21 @@ TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         {{"--view", sidecar("sidecar_strategy", "{\"spp\": 16, \"sampler\": \"importance\"}"),
           "--material", "sphere"},
          "sampler \"importance\" (allowed: "},
+        {{"--view",
+          sidecar("sidecar_filter",
+                  R"({"spp": 64, "pixel_filter": {"type": "gaussian", "stddev": 0.5}})"),
+          "--material", "sphere"},
+         "rendered with a Gaussian pixel filter (stddev 0.5 pixels) but"},
+        {{"--view", sidecar("sidecar_filter_kind", R"({"spp": 64, "pixel_filter": {"type": 1}})"),
+          "--material", "sphere"},
+         "pixel_filter {\"type\":1} (allowed: "},
+        {{"--view", sidecar("sidecar_depth", R"({"spp": 64, "max_depth": 1})"), "--material",
+          "sphere"},
+         "rendered with depth 1 but"},
+        {{"--view",
+          sidecar("sidecar_depth_huge", R"({"spp": 64, "max_depth": 18446744073709551615})"),
+          "--material", "sphere"},
+         "max_depth 18446744073709551615 is not a whole number in [-1, "},
         {{"--view", view, "--material", "sphere", "--image-spp", "-2"}, "--image-spp"},
     };
     for (const Case& c : cases) {

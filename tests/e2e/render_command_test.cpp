@@ -48,6 +48,9 @@ TEST_F(RenderCommand, WritesExrPngAndSidecar) {
     EXPECT_EQ(sidecar["interrupted"], false);
     EXPECT_GT(sidecar["rays"].get<double>(), 0);
     EXPECT_EQ(sidecar["defines"]["width"], "32");
+    // What a fit checks its scene against (render_sidecar.h): the scene's box, depth 2.
+    EXPECT_EQ(sidecar["pixel_filter"], nlohmann::json({{"type", "box"}}));
+    EXPECT_EQ(sidecar["max_depth"], 2);
 }
 
 // --pixel-sampler overrides the scene's <sampler type>: a different image of the same mean; a name
