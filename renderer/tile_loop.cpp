@@ -41,13 +41,26 @@ std::vector<Tile> makeTiles(int width, int height) {
     return tiles;
 }
 
-// Box: uniform over the pixel. Gaussian: the filter is importance-sampled (Box-Muller around the
-// pixel centre), so every sample still belongs to one pixel with weight 1 and no splatting is
-// needed (as pbrt-v4).
+// Box: uniform over the pixel. Gaussian and tent: the filter is importance-sampled (Box-Muller
+// around the pixel centre; the tent's inverse CDF along each axis), so every sample still belongs
+// to one pixel with weight 1 and no splatting is needed (as pbrt-v4 and Tungsten).
 Vec2d filmPosition(const SensorDesc& sensor, int x, int y, double u0, double u1) {
-    if (sensor.filter == SensorDesc::Filter::Box) return Vec2d(x + u0, y + u1);
-    const double r = sensor.gaussianStddev * std::sqrt(-2 * std::log1p(-u0));
-    return Vec2d(x + 0.5 + r * std::cos(2 * kPi * u1), y + 0.5 + r * std::sin(2 * kPi * u1));
+    switch (sensor.filter) {
+        case SensorDesc::Filter::Box:
+            return Vec2d(x + u0, y + u1);
+        case SensorDesc::Filter::Gaussian: {
+            const double r = sensor.gaussianStddev * std::sqrt(-2 * std::log1p(-u0));
+            return Vec2d(x + 0.5 + r * std::cos(2 * kPi * u1),
+                         y + 0.5 + r * std::sin(2 * kPi * u1));
+        }
+        case SensorDesc::Filter::Tent:
+            break;
+    }
+    const double r = sensor.tentRadius;
+    const auto offset = [r](double u) {
+        return u < 0.5 ? r * (std::sqrt(2 * u) - 1) : r * (1 - std::sqrt(2 - 2 * u));
+    };
+    return Vec2d(x + 0.5 + offset(u0), y + 0.5 + offset(u1));
 }
 
 bool representable(const Color3& c) {

@@ -81,9 +81,12 @@ struct SensorDesc {
     int width = 768, height = 576;
     int sampleCount = 4;
     PixelSamplerType pixelSampler = PixelSamplerType::Sobol;  // <sampler type>: Sobol unless named
-    enum class Filter { Box, Gaussian };
+    enum class Filter { Box, Gaussian, Tent };
     Filter filter = Filter::Box;
     double gaussianStddev = 0.5;  // pixels, Mitsuba's default
+    // 1 - |x| / radius along each axis, pixels: Tungsten's default filter (radius 1), and
+    // Mitsuba's tent.
+    double tentRadius = 1;
     // The film names its <rfilter>. Where it does not, Mitsuba 0.6 filters with a Gaussian and
     // phongfit with a box: an image from Mitsuba then misstates its scene.
     bool filterNamed = false;

@@ -37,6 +37,9 @@ using namespace scene_xml;
 // the same ranges). A film of kMaxFilmPixels takes about 3 GB to render.
 constexpr int kMaxFilmSize = 16384;
 constexpr long kMaxFilmPixels = 1L << 25;
+// A pixel filter's stddev or radius: its samples land this many pixels from the pixel at most
+// (a Gaussian's within a few stddevs), which keeps film positions and camera rays finite.
+constexpr double kMaxFilterWidth = 64;
 constexpr int kMaxSampleCount = 1 << 20;
 constexpr int kMaxDepth = 1000;
 constexpr std::size_t kMaxSceneTriangles = kMaxMeshTriangles;
@@ -265,20 +268,28 @@ private:
 
     void parseFilter(pugi::xml_node n) {
         ctx_.checkAttributes(n, {"type", "id"});
-        const std::string type = typeOf(n, {"box", "gaussian"});
+        const std::string type = typeOf(n, {"box", "gaussian", "tent"});
         std::vector<pugi::xml_node> nested;
         Params p = collect(n, {}, nested);
         SensorDesc& sensor = scene_.sensor;
         sensor.filterNamed = true;
+        // A width in pixels: > 0, and within the film's reach of a pixel.
+        const auto width = [&](const char* name, double fallback) {
+            const double w = p.getFloat(name).value_or(fallback);
+            if (!(w > 0 && w <= kMaxFilterWidth))
+                ctx_.fail(p.node(name), fmt::format("{} {} is invalid (allowed: > 0 and <= {} "
+                                                    "pixels)",
+                                                    name, w, kMaxFilterWidth));
+            return w;
+        };
         if (type == "box") {
             sensor.filter = SensorDesc::Filter::Box;
-        } else {
+        } else if (type == "gaussian") {
             sensor.filter = SensorDesc::Filter::Gaussian;
-            sensor.gaussianStddev = p.getFloat("stddev").value_or(0.5);
-            if (!(sensor.gaussianStddev > 0))
-                ctx_.fail(p.node("stddev"),
-                          fmt::format("stddev {} is invalid (allowed: > 0 pixels)",
-                                      sensor.gaussianStddev));
+            sensor.gaussianStddev = width("stddev", 0.5);
+        } else {
+            sensor.filter = SensorDesc::Filter::Tent;
+            sensor.tentRadius = width("radius", 1.0);
         }
         p.finish();
         registerId(n, "rfilter", 0);

@@ -242,9 +242,9 @@ TEST(Determinism, SameSeedSameImageWhateverTheThreadCount) {
 
 // Pixels left out of a render (a fit's comparison renders only the pixels it compares, its
 // rendered noise only the pixels that hold a parameter) take no sample and read 0; the others are
-// the full render's to the bit, their samples being keyed by the pixel, with a box filter or a
-// Gaussian one (importance-sampled: each sample is its own pixel's, none reaches a neighbour). A
-// mask of the wrong size is refused.
+// the full render's to the bit, their samples being keyed by the pixel, with a box filter, a
+// Gaussian or a tent (importance-sampled: each sample is its own pixel's, none reaches a
+// neighbour). A mask of the wrong size is refused.
 TEST(Determinism, PixelsLeftOutTakeNoSampleAndTheOthersAreTheFullRenders) {
     PhongMaterial m;
     m.kd = Color3(0.4, 0.5, 0.6);
@@ -259,7 +259,7 @@ TEST(Determinism, PixelsLeftOutTakeNoSampleAndTheOthersAreTheFullRenders) {
     std::vector<std::uint8_t> rendered(24 * 24, 0);
     for (std::size_t p = 0; p < rendered.size(); p += 3) rendered[p] = 1;
     for (const SensorDesc::Filter filter :
-         {SensorDesc::Filter::Box, SensorDesc::Filter::Gaussian}) {
+         {SensorDesc::Filter::Box, SensorDesc::Filter::Gaussian, SensorDesc::Filter::Tent}) {
         scene.sensor.filter = filter;
         const Renderer renderer(scene);
         options.rendered = {};

@@ -156,6 +156,20 @@ TEST(SceneParser, SensorSamplerFilmAndFilters) {
     s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
                         R"(<rfilter type="box"/></film>)"));
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Box);
+    EXPECT_TRUE(s.sensor.filterNamed);
+    // Tungsten's default and Mitsuba's tent: radius 1 unless named.
+    s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
+                        R"(<rfilter type="tent"/></film>)"));
+    EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Tent);
+    EXPECT_EQ(s.sensor.tentRadius, 1.0);
+    s = parse(
+        sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
+                  R"(<rfilter type="tent"><float name="radius" value="1.5"/></rfilter></film>)"));
+    EXPECT_EQ(s.sensor.tentRadius, 1.5);
+    // A film that names no filter takes the box, and says so.
+    s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm"/>)"));
+    EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Box);
+    EXPECT_FALSE(s.sensor.filterNamed);
 
     const std::pair<const char*, SensorDesc::FovAxis> axes[] = {
         {"x", SensorDesc::FovAxis::X},
@@ -712,7 +726,13 @@ TEST(SceneParser, MalformedInputsGiveFileLineAndWhatIsWrong) {
          "t.xml:3: film type=\"ldrfilm\": unknown type 'ldrfilm' (allowed: hdrfilm)"},
         {sensorDoc("<film type=\"hdrfilm\"><rfilter type=\"gaussian\"><float name=\"stddev\" "
                    "value=\"0\"/></rfilter></film>\n<float name=\"fov\" value=\"45\"/>"),
-         "stddev 0 is invalid (allowed: > 0 pixels)"},
+         "stddev 0 is invalid (allowed: > 0 and <= 64 pixels)"},
+        {sensorDoc("<film type=\"hdrfilm\"><rfilter type=\"tent\"><float name=\"radius\" "
+                   "value=\"1e300\"/></rfilter></film>\n<float name=\"fov\" value=\"45\"/>"),
+         "radius 1e+300 is invalid (allowed: > 0 and <= 64 pixels)"},
+        {sensorDoc("<film type=\"hdrfilm\"><rfilter type=\"mitchell\"/></film>\n"
+                   "<float name=\"fov\" value=\"45\"/>"),
+         "unknown type 'mitchell' (allowed: box, gaussian, tent)"},
         {sensorDoc("<sampler type=\"independent\"><integer name=\"sampleCount\" value=\"0\"/>"
                    "</sampler>\n<float name=\"fov\" value=\"45\"/>"),
          "t.xml:3: integer name=\"sampleCount\": sampleCount 0 is invalid (allowed: >= 1)"},

@@ -1,12 +1,19 @@
 // Rendering and path recording run one tile loop (renderer/tile_loop.h), so they share its
 // policies: a recording with no fitted material is the render (same random numbers, same sampler,
 // same non-finite samples left out), and a recording polls the interrupt flag as a render does.
+#include "tile_loop.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
+#include <random>
 #include <string>
+#include <vector>
 
+#include "chi_square.h"
 #include "interrupt.h"
 #include "renderer.h"
 #include "scene_parser.h"
@@ -112,6 +119,61 @@ TEST(TileLoop, InterruptedRecordingHoldsTheFirstPassAndSaysSo) {
     for (std::size_t t = 0; t < a.terms.size(); ++t) {
         EXPECT_EQ(a.terms[t].firstVertex, b.terms[t].firstVertex);
         for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(a.terms[t].constant[c], b.terms[t].constant[c]);
+    }
+}
+
+// A sample's film position is drawn from the pixel's filter (importance-sampled, weight 1): its
+// offset from the pixel's centre, binned over the plane, against the filter's closed-form CDF along
+// each axis (the box's uniform one, the Gaussian's erf, the tent's two parabolas), the two axes
+// independent. Tungsten's default filter is the tent of radius 1, Mitsuba 0.6's the Gaussian of
+// stddev 0.5.
+TEST(TileLoop, FilmPositionsFollowThePixelFilter) {
+    struct Case {
+        const char* name;
+        SensorDesc::Filter filter;
+        double width;  // stddev or radius
+        std::function<double(double)> cdf;
+        double reach;  // the bins span [-reach, reach], the outer ones open
+    };
+    const auto tent = [](double r) {
+        return [r](double x) {
+            x = std::clamp(x, -r, r);
+            return x < 0 ? (x + r) * (x + r) / (2 * r * r) : 1 - (r - x) * (r - x) / (2 * r * r);
+        };
+    };
+    const std::vector<Case> cases = {
+        {"box", SensorDesc::Filter::Box, 0, [](double x) { return std::clamp(x + 0.5, 0.0, 1.0); },
+         0.5},
+        {"gaussian", SensorDesc::Filter::Gaussian, 0.5,
+         [](double x) { return 0.5 * std::erfc(-x / (0.5 * std::sqrt(2.0))); }, 1.5},
+        {"tent", SensorDesc::Filter::Tent, 1, tent(1), 1},
+        {"tent 1.5", SensorDesc::Filter::Tent, 1.5, tent(1.5), 1.5},
+    };
+    constexpr int kBins = 12, kSamples = 200000;
+    for (const Case& c : cases) {
+        SensorDesc film;
+        film.filter = c.filter;
+        film.gaussianStddev = film.tentRadius = c.width;
+        std::vector<double> edges = {-std::numeric_limits<double>::infinity()};
+        for (int k = 1; k < kBins; ++k) edges.push_back(c.reach * (2.0 * k / kBins - 1));
+        edges.push_back(std::numeric_limits<double>::infinity());
+        const auto bin = [&](double d) {
+            return int(std::upper_bound(edges.begin() + 1, edges.end() - 1, d) - edges.begin()) - 1;
+        };
+        std::vector<double> observed(kBins * kBins, 0), expected(kBins * kBins);
+        std::mt19937_64 rng(17);
+        std::uniform_real_distribution<double> uniform(0, 1);
+        for (int s = 0; s < kSamples; ++s) {
+            const Vec2d at = filmPosition(film, 7, 3, uniform(rng), uniform(rng));
+            ++observed[bin(at.x() - 7.5) * kBins + bin(at.y() - 3.5)];
+        }
+        for (int i = 0; i < kBins; ++i)
+            for (int j = 0; j < kBins; ++j)
+                expected[i * kBins + j] = kSamples * (c.cdf(edges[i + 1]) - c.cdf(edges[i])) *
+                                          (c.cdf(edges[j + 1]) - c.cdf(edges[j]));
+        const ChiSquareResult r = chiSquareTest(observed, expected);
+        EXPECT_GT(r.pValue, sidakSignificance(1e-3, int(cases.size())))
+            << c.name << ": chi-square " << r.statistic << " on " << r.dof << " degrees of freedom";
     }
 }
 

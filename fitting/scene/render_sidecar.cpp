@@ -24,10 +24,33 @@ std::string shown(const nlohmann::json& value) {
     return text.size() <= 60 ? text : text.substr(0, 57) + "...";
 }
 
-std::string filterWords(SensorDesc::Filter filter, double stddev) {
-    return filter == SensorDesc::Filter::Box
-               ? "a box pixel filter"
-               : fmt::format("a Gaussian pixel filter (stddev {:g} pixels)", stddev);
+// A pixel filter as the sidecar names it: its type, and the width it takes, in pixels.
+struct FilterName {
+    SensorDesc::Filter filter;
+    const char* type;
+    const char* width;  // nullptr for the box
+};
+constexpr FilterName kFilterNames[] = {{SensorDesc::Filter::Box, "box", nullptr},
+                                       {SensorDesc::Filter::Gaussian, "gaussian", "stddev"},
+                                       {SensorDesc::Filter::Tent, "tent", "radius"}};
+
+const FilterName& filterName(SensorDesc::Filter filter) {
+    return *std::find_if(std::begin(kFilterNames), std::end(kFilterNames),
+                         [&](const FilterName& f) { return f.filter == filter; });
+}
+
+double filterWidth(const SensorDesc& film) {
+    return film.filter == SensorDesc::Filter::Gaussian ? film.gaussianStddev
+           : film.filter == SensorDesc::Filter::Tent   ? film.tentRadius
+                                                       : 0;
+}
+
+std::string filterWords(SensorDesc::Filter filter, double width) {
+    const FilterName& f = filterName(filter);
+    if (f.width == nullptr) return "a box pixel filter";
+    return fmt::format("a {} pixel filter ({} {:g} pixels)",
+                       filter == SensorDesc::Filter::Gaussian ? "Gaussian" : f.type, f.width,
+                       width);
 }
 
 std::string depthWords(int depth) {
@@ -43,8 +66,10 @@ bool sameDepth(int a, int b, bool directExact) {
 }  // namespace
 
 nlohmann::json pixelFilterJson(const SensorDesc& film) {
-    if (film.filter == SensorDesc::Filter::Box) return {{"type", "box"}};
-    return {{"type", "gaussian"}, {"stddev", film.gaussianStddev}};
+    const FilterName& f = filterName(film.filter);
+    nlohmann::json filter = {{"type", f.type}};
+    if (f.width != nullptr) filter[f.width] = filterWidth(film);
+    return filter;
 }
 
 RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int maxDepth,
@@ -97,20 +122,25 @@ RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int 
     if (j.contains("pixel_filter")) {
         const nlohmann::json& f = j["pixel_filter"];
         const nlohmann::json type = f.is_object() && f.contains("type") ? f["type"] : nullptr;
-        const nlohmann::json stddev = f.is_object() && f.contains("stddev") ? f["stddev"] : nullptr;
-        const bool box = type == "box";
-        if (!box && !(type == "gaussian" && stddev.is_number() && stddev.get<double>() > 0 &&
-                      std::isfinite(stddev.get<double>())))
+        const auto named = std::find_if(std::begin(kFilterNames), std::end(kFilterNames),
+                                        [&](const FilterName& n) { return type == n.type; });
+        const nlohmann::json width =
+            named != std::end(kFilterNames) && named->width != nullptr && f.contains(named->width)
+                ? f[named->width]
+                : nullptr;
+        if (named == std::end(kFilterNames) ||
+            (named->width != nullptr &&
+             !(width.is_number() && width.get<double>() > 0 && std::isfinite(width.get<double>()))))
             throw fail(
-                fmt::format("pixel_filter {} (allowed: {{\"type\": \"box\"}} or "
-                            "{{\"type\": \"gaussian\", \"stddev\": pixels > 0}})",
+                fmt::format("pixel_filter {} (allowed: {{\"type\": \"box\"}}, "
+                            "{{\"type\": \"gaussian\", \"stddev\": pixels > 0}} or "
+                            "{{\"type\": \"tent\", \"radius\": pixels > 0}})",
                             shown(f)));
-        const auto filter = box ? SensorDesc::Filter::Box : SensorDesc::Filter::Gaussian;
-        const double sigma = box ? 0.0 : stddev.get<double>();
-        if (filter != film.filter ||
-            (!box && std::abs(sigma - film.gaussianStddev) > 1e-6 * film.gaussianStddev))
-            throw misstated(filterWords(filter, sigma),
-                            filterWords(film.filter, film.gaussianStddev) +
+        const double w = named->width != nullptr ? width.get<double>() : 0.0;
+        const double filmWidth = filterWidth(film);
+        if (named->filter != film.filter || std::abs(w - filmWidth) > 1e-6 * filmWidth)
+            throw misstated(filterWords(named->filter, w),
+                            filterWords(film.filter, filmWidth) +
                                 (film.filterNamed ? "" : " (its film names no <rfilter>)"),
                             "the image's filter, named in the film's <rfilter>");
         as.filterKnown = true;

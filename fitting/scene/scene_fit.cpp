@@ -151,10 +151,17 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
 }
 
 // How many pixels from its own a pixel's value takes samples: the Gaussian's 3 standard
-// deviations, none for a box.
+// deviations, the tent's radius, none for a box.
 int filterReach(const SensorDesc& film) {
-    return film.filter == SensorDesc::Filter::Box ? 0
-                                                  : int(std::ceil(3 * film.gaussianStddev + 0.5));
+    switch (film.filter) {
+        case SensorDesc::Filter::Box:
+            return 0;
+        case SensorDesc::Filter::Gaussian:
+            return int(std::ceil(3 * film.gaussianStddev + 0.5));
+        case SensorDesc::Filter::Tent:
+            break;
+    }
+    return int(std::ceil(film.tentRadius + 0.5));
 }
 
 // Where every fitted material is seen directly somewhere, the pixels that see none of them through
