@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <vector>
 
 #include "error.h"
 #include "phong_sampler.h"
@@ -59,7 +61,7 @@ std::string depthWords(int depth) {
 
 // Depths that render the same image: equal, or both at least 2 where direct light is exact.
 bool sameDepth(int a, int b, bool directExact) {
-    const auto reach = [](int d) { return d < 0 ? INT32_MAX : d; };
+    const auto reach = [](int d) { return d < 0 ? std::numeric_limits<int>::max() : d; };
     return reach(a) == reach(b) || (directExact && reach(a) >= 2 && reach(b) >= 2);
 }
 
@@ -122,24 +124,24 @@ RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int 
     if (j.contains("pixel_filter")) {
         const nlohmann::json& f = j["pixel_filter"];
         const nlohmann::json type = f.is_object() && f.contains("type") ? f["type"] : nullptr;
-        const auto named = std::find_if(std::begin(kFilterNames), std::end(kFilterNames),
+        const auto known = std::find_if(std::begin(kFilterNames), std::end(kFilterNames),
                                         [&](const FilterName& n) { return type == n.type; });
         const nlohmann::json width =
-            named != std::end(kFilterNames) && named->width != nullptr && f.contains(named->width)
-                ? f[named->width]
+            known != std::end(kFilterNames) && known->width != nullptr && f.contains(known->width)
+                ? f[known->width]
                 : nullptr;
-        if (named == std::end(kFilterNames) ||
-            (named->width != nullptr &&
+        if (known == std::end(kFilterNames) ||
+            (known->width != nullptr &&
              !(width.is_number() && width.get<double>() > 0 && std::isfinite(width.get<double>()))))
             throw fail(
                 fmt::format("pixel_filter {} (allowed: {{\"type\": \"box\"}}, "
                             "{{\"type\": \"gaussian\", \"stddev\": pixels > 0}} or "
                             "{{\"type\": \"tent\", \"radius\": pixels > 0}})",
                             shown(f)));
-        const double w = named->width != nullptr ? width.get<double>() : 0.0;
+        const double w = known->width != nullptr ? width.get<double>() : 0.0;
         const double filmWidth = filterWidth(film);
-        if (named->filter != film.filter || std::abs(w - filmWidth) > 1e-6 * filmWidth)
-            throw misstated(filterWords(named->filter, w),
+        if (known->filter != film.filter || std::abs(w - filmWidth) > 1e-6 * filmWidth)
+            throw misstated(filterWords(known->filter, w),
                             filterWords(film.filter, filmWidth) +
                                 (film.filterNamed ? "" : " (its film names no <rfilter>)"),
                             "the image's filter, named in the film's <rfilter>");

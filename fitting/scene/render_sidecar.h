@@ -26,8 +26,8 @@ struct RenderedAs {
     bool filterKnown = false;
 };
 
-// The film's pixel filter as the sidecar writes it: {"type": "box"} or {"type": "gaussian",
-// "stddev": pixels}.
+// The film's pixel filter as the sidecar writes it: {"type": "box"}, {"type": "gaussian",
+// "stddev": pixels} or {"type": "tent", "radius": pixels}.
 nlohmann::json pixelFilterJson(const SensorDesc& film);
 
 // The settings of the image at `imagePath` from its sidecar IMAGE.json where there is one, else
