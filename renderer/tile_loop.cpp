@@ -49,14 +49,14 @@ Vec2d filmPosition(const SensorDesc& sensor, int x, int y, double u0, double u1)
         case SensorDesc::Filter::Box:
             return Vec2d(x + u0, y + u1);
         case SensorDesc::Filter::Gaussian: {
-            const double r = sensor.gaussianStddev * std::sqrt(-2 * std::log1p(-u0));
+            const double r = sensor.filterWidth * std::sqrt(-2 * std::log1p(-u0));
             return Vec2d(x + 0.5 + r * std::cos(2 * kPi * u1),
                          y + 0.5 + r * std::sin(2 * kPi * u1));
         }
         case SensorDesc::Filter::Tent:
             break;
     }
-    const double r = sensor.tentRadius;
+    const double r = sensor.filterWidth;
     const auto offset = [r](double u) {
         return u < 0.5 ? r * (std::sqrt(2 * u) - 1) : r * (1 - std::sqrt(2 - 2 * u));
     };

@@ -83,14 +83,33 @@ struct SensorDesc {
     PixelSamplerType pixelSampler = PixelSamplerType::Sobol;  // <sampler type>: Sobol unless named
     enum class Filter { Box, Gaussian, Tent };
     Filter filter = Filter::Box;
-    double gaussianStddev = 0.5;  // pixels, Mitsuba's default
-    // 1 - |x| / radius along each axis, pixels: Tungsten's default filter (radius 1), and
-    // Mitsuba's tent.
-    double tentRadius = 1;
+    // The Gaussian's stddev or the tent's radius (1 - |x| / radius along each axis), pixels; the
+    // box takes none. A parsed film has its filter's default (kPixelFilters).
+    double filterWidth = 0.5;
     // The film names its <rfilter>. Where it does not, Mitsuba 0.6 filters with a Gaussian and
     // phongfit with a box: an image from Mitsuba then misstates its scene.
     bool filterNamed = false;
 };
+
+// The <rfilter> types as the scene format and `render`'s sidecar name them, with the width each
+// takes and its default: the Gaussian's is Mitsuba 0.6's default filter; the tent of radius 1 is
+// Tungsten's default and Mitsuba's tent.
+struct PixelFilterName {
+    SensorDesc::Filter filter;
+    const char* type;
+    const char* width;  // nullptr for the box
+    double defaultWidth;
+};
+inline constexpr PixelFilterName kPixelFilters[] = {
+    {SensorDesc::Filter::Box, "box", nullptr, 0},
+    {SensorDesc::Filter::Gaussian, "gaussian", "stddev", 0.5},
+    {SensorDesc::Filter::Tent, "tent", "radius", 1}};
+
+inline const PixelFilterName& pixelFilterName(SensorDesc::Filter filter) {
+    for (const PixelFilterName& f : kPixelFilters)
+        if (f.filter == filter) return f;
+    return kPixelFilters[0];
+}
 
 struct IntegratorDesc {
     std::string type = "path";  // "path" or "direct"

@@ -273,23 +273,17 @@ private:
         Params p = collect(n, {}, nested);
         SensorDesc& sensor = scene_.sensor;
         sensor.filterNamed = true;
-        // A width in pixels: > 0, and within the film's reach of a pixel.
-        const auto width = [&](const char* name, double fallback) {
-            const double w = p.getFloat(name).value_or(fallback);
-            if (!(w > 0 && w <= kMaxFilterWidth))
-                ctx_.fail(p.node(name), fmt::format("{} {} is invalid (allowed: > 0 and <= {} "
-                                                    "pixels)",
-                                                    name, w, kMaxFilterWidth));
-            return w;
-        };
-        if (type == "box") {
-            sensor.filter = SensorDesc::Filter::Box;
-        } else if (type == "gaussian") {
-            sensor.filter = SensorDesc::Filter::Gaussian;
-            sensor.gaussianStddev = width("stddev", 0.5);
-        } else {
-            sensor.filter = SensorDesc::Filter::Tent;
-            sensor.tentRadius = width("radius", 1.0);
+        const PixelFilterName& f =
+            *std::find_if(std::begin(kPixelFilters), std::end(kPixelFilters),
+                          [&](const PixelFilterName& known) { return type == known.type; });
+        sensor.filter = f.filter;
+        if (f.width != nullptr) {
+            // In pixels: > 0, and within the film's reach of a pixel.
+            sensor.filterWidth = p.getFloat(f.width).value_or(f.defaultWidth);
+            if (!(sensor.filterWidth > 0 && sensor.filterWidth <= kMaxFilterWidth))
+                ctx_.fail(p.node(f.width),
+                          fmt::format("{} {} is invalid (allowed: > 0 and <= {} pixels)", f.width,
+                                      sensor.filterWidth, kMaxFilterWidth));
         }
         p.finish();
         registerId(n, "rfilter", 0);

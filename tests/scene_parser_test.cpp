@@ -136,7 +136,7 @@ TEST(SceneParser, SensorSamplerFilmAndFilters) {
     EXPECT_EQ(s.sensor.width, 320);
     EXPECT_EQ(s.sensor.height, 16384);
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Gaussian);
-    EXPECT_EQ(s.sensor.gaussianStddev, 0.25);
+    EXPECT_EQ(s.sensor.filterWidth, 0.25);
     EXPECT_EQ(s.sensor.pixelSampler, PixelSamplerType::Independent);
     // Mitsuba's low-discrepancy names: sobol (also what a sensor that names none takes) and
     // ldsampler, padded.
@@ -152,7 +152,7 @@ TEST(SceneParser, SensorSamplerFilmAndFilters) {
     s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
                         R"(<rfilter type="gaussian"/></film>)"));
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Gaussian);
-    EXPECT_EQ(s.sensor.gaussianStddev, 0.5);
+    EXPECT_EQ(s.sensor.filterWidth, 0.5);
     s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
                         R"(<rfilter type="box"/></film>)"));
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Box);
@@ -161,11 +161,11 @@ TEST(SceneParser, SensorSamplerFilmAndFilters) {
     s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
                         R"(<rfilter type="tent"/></film>)"));
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Tent);
-    EXPECT_EQ(s.sensor.tentRadius, 1.0);
+    EXPECT_EQ(s.sensor.filterWidth, 1.0);
     s = parse(
         sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm">)"
                   R"(<rfilter type="tent"><float name="radius" value="1.5"/></rfilter></film>)"));
-    EXPECT_EQ(s.sensor.tentRadius, 1.5);
+    EXPECT_EQ(s.sensor.filterWidth, 1.5);
     // A film that names no filter takes the box, and says so.
     s = parse(sensorDoc(R"(<float name="fov" value="45"/><film type="hdrfilm"/>)"));
     EXPECT_EQ(s.sensor.filter, SensorDesc::Filter::Box);

@@ -153,7 +153,7 @@ TEST(TileLoop, FilmPositionsFollowThePixelFilter) {
     for (const Case& c : cases) {
         SensorDesc film;
         film.filter = c.filter;
-        film.gaussianStddev = film.tentRadius = c.width;
+        film.filterWidth = c.width;
         std::vector<double> edges = {-std::numeric_limits<double>::infinity()};
         for (int k = 1; k < kBins; ++k) edges.push_back(c.reach * (2.0 * k / kBins - 1));
         edges.push_back(std::numeric_limits<double>::infinity());

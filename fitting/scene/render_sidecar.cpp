@@ -26,29 +26,13 @@ std::string shown(const nlohmann::json& value) {
     return text.size() <= 60 ? text : text.substr(0, 57) + "...";
 }
 
-// A pixel filter as the sidecar names it: its type, and the width it takes, in pixels.
-struct FilterName {
-    SensorDesc::Filter filter;
-    const char* type;
-    const char* width;  // nullptr for the box
-};
-constexpr FilterName kFilterNames[] = {{SensorDesc::Filter::Box, "box", nullptr},
-                                       {SensorDesc::Filter::Gaussian, "gaussian", "stddev"},
-                                       {SensorDesc::Filter::Tent, "tent", "radius"}};
-
-const FilterName& filterName(SensorDesc::Filter filter) {
-    return *std::find_if(std::begin(kFilterNames), std::end(kFilterNames),
-                         [&](const FilterName& f) { return f.filter == filter; });
-}
-
+// What the film's filter takes as its width: 0 for the box, whose sidecar names none.
 double filterWidth(const SensorDesc& film) {
-    return film.filter == SensorDesc::Filter::Gaussian ? film.gaussianStddev
-           : film.filter == SensorDesc::Filter::Tent   ? film.tentRadius
-                                                       : 0;
+    return pixelFilterName(film.filter).width != nullptr ? film.filterWidth : 0;
 }
 
 std::string filterWords(SensorDesc::Filter filter, double width) {
-    const FilterName& f = filterName(filter);
+    const PixelFilterName& f = pixelFilterName(filter);
     if (f.width == nullptr) return "a box pixel filter";
     return fmt::format("a {} pixel filter ({} {:g} pixels)",
                        filter == SensorDesc::Filter::Gaussian ? "Gaussian" : f.type, f.width,
@@ -68,7 +52,7 @@ bool sameDepth(int a, int b, bool directExact) {
 }  // namespace
 
 nlohmann::json pixelFilterJson(const SensorDesc& film) {
-    const FilterName& f = filterName(film.filter);
+    const PixelFilterName& f = pixelFilterName(film.filter);
     nlohmann::json filter = {{"type", f.type}};
     if (f.width != nullptr) filter[f.width] = filterWidth(film);
     return filter;
@@ -124,13 +108,13 @@ RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int 
     if (j.contains("pixel_filter")) {
         const nlohmann::json& f = j["pixel_filter"];
         const nlohmann::json type = f.is_object() && f.contains("type") ? f["type"] : nullptr;
-        const auto known = std::find_if(std::begin(kFilterNames), std::end(kFilterNames),
-                                        [&](const FilterName& n) { return type == n.type; });
+        const auto known = std::find_if(std::begin(kPixelFilters), std::end(kPixelFilters),
+                                        [&](const PixelFilterName& n) { return type == n.type; });
         const nlohmann::json width =
-            known != std::end(kFilterNames) && known->width != nullptr && f.contains(known->width)
+            known != std::end(kPixelFilters) && known->width != nullptr && f.contains(known->width)
                 ? f[known->width]
                 : nullptr;
-        if (known == std::end(kFilterNames) ||
+        if (known == std::end(kPixelFilters) ||
             (known->width != nullptr &&
              !(width.is_number() && width.get<double>() > 0 && std::isfinite(width.get<double>()))))
             throw fail(
@@ -162,9 +146,13 @@ RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int 
     return as;
 }
 
+bool filterAssumed(const SensorDesc& film, const RenderedAs& as) {
+    return !film.filterNamed && !as.filterKnown;
+}
+
 nlohmann::json pixelFilterReport(const SensorDesc& film, const RenderedAs& as) {
     nlohmann::json report = pixelFilterJson(film);
-    report["from"] = as.filterKnown ? as.source : film.filterNamed ? "scene" : "default";
+    report["from"] = as.filterKnown ? as.source : filterAssumed(film, as) ? "default" : "scene";
     return report;
 }
 

@@ -38,6 +38,10 @@ nlohmann::json pixelFilterJson(const SensorDesc& film);
 RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int maxDepth,
                           bool directExact);
 
+// The image's filter is only phongfit's default: the film names none, and no sidecar says which
+// filter made the image (Mitsuba 0.6's default differs).
+bool filterAssumed(const SensorDesc& film, const RenderedAs& as);
+
 // What fit.json says of a view's pixel filter: pixelFilterJson's, and "from": "scene", the
 // sidecar's path, or "default" where the film names none and no sidecar says which it was.
 nlohmann::json pixelFilterReport(const SensorDesc& film, const RenderedAs& as);

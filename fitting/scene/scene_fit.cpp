@@ -157,11 +157,11 @@ int filterReach(const SensorDesc& film) {
         case SensorDesc::Filter::Box:
             return 0;
         case SensorDesc::Filter::Gaussian:
-            return int(std::ceil(3 * film.gaussianStddev + 0.5));
+            return int(std::ceil(3 * film.filterWidth + 0.5));
         case SensorDesc::Filter::Tent:
             break;
     }
-    return int(std::ceil(film.tentRadius + 0.5));
+    return int(std::ceil(film.filterWidth + 0.5));
 }
 
 // Where every fitted material is seen directly somewhere, the pixels that see none of them through

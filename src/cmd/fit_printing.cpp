@@ -101,7 +101,7 @@ std::string unconstrainedNote(const MaterialFit& m) {
 
 void printSceneWarnings(const SceneFitProblem& problem) {
     for (const SceneView& v : problem.views)
-        if (!v.renderer->scene().sensor.filterNamed && !v.renderedAs.filterKnown)
+        if (filterAssumed(v.renderer->scene().sensor, v.renderedAs))
             fmt::print(
                 "warning: {}: the film names no <rfilter>, so {} is fitted as rendered with a box "
                 "pixel filter, phongfit's default; Mitsuba 0.6's is a Gaussian (stddev 0.5 "
