@@ -188,6 +188,18 @@ struct FitOptions {
     std::function<bool()> stopRequested;
 };
 
+// Whether a view's image agrees with its scene where the geometry's edges cross pixels.
+struct EdgeCheck {
+    std::size_t pixels = 0;      // edge pixels compared (below kLeastEdgePixels: no verdict)
+    double medianDeviation = 0;  // |image - render| over their noise, the median over those
+    double misfit = 0;           // the sum of the squared deviations
+    // Rendered with another of the pixel filters (kPixelFilters, at its default width) whose
+    // misfit is far below the scene's filter's: its name ("gaussian stddev 0.5"), and misfit.
+    std::string betterFilter;
+    double betterMisfit = 0;
+    bool disagrees = false;
+};
+
 struct FitResult {
     std::vector<MaterialFit> materials;   // indexed by slot
     std::optional<ExposureFit> exposure;  // with FitOptions::fitExposure
@@ -206,7 +218,8 @@ struct FitResult {
     // recording gives: path_growth.h), "sharper lobe" (they were
     // spent as a round recorded at a sharper lobe moved the estimate there, or the last round, a
     // probe, did not come back to the estimate reported: sharper_probe.h), "time budget"
-    // (FitOptions::timeBudget), "memory" (FitOptions::memoryLimit) or "interrupted".
+    // (FitOptions::timeBudget), "memory" (FitOptions::memoryLimit), "interrupted", or (scene
+    // fits) "images disagree": converged, but an image disagrees with its scene (edgeChecks).
     std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.
@@ -215,6 +228,9 @@ struct FitResult {
     // The process' resident bytes when the rounds began (scene, images and renderer loaded); the
     // rounds' peakMemoryBytes count from then on (earlier peaks are forgotten where Linux allows).
     std::size_t residentAtStartBytes = 0;
+    // Scene fits, per view: the image against a render at the estimate where the scene's edges
+    // cross pixels (edge_agreement.h). Empty: not checked.
+    std::vector<EdgeCheck> edgeChecks;
 };
 
 // Records the path set of `view` at the estimate `theta0` (indexed by slot). It is called twice per

@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,7 @@
 
 #include "atomic_file.h"
 #include "comparison_image.h"
+#include "edge_agreement.h"
 #include "error.h"
 #include "film_window.h"
 #include "fit_report.h"
@@ -143,6 +145,7 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
                                   v.renderer->effectiveMaxDepth(-2), directExact);
     const std::vector<int> seen = v.renderer->bsdfSeen(0);
     v.direct = seesAny(seen, v.fittedBsdfs);
+    v.edges = edgePixels(seen, image.width, image.height, v.fittedBsdfs);
     v.slotSeen.assign(v.fittedBsdfs.size(), false);
     for (std::size_t p = 0; p < seen.size(); ++p)
         for (std::size_t s = 0; s < v.fittedBsdfs.size(); ++s)
@@ -369,7 +372,24 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
                                               [](const SceneView& v) { return v.deltaLightsOnly; });
     o.extendedLights = !std::all_of(problem.views.begin(), problem.views.end(),
                                     [](const SceneView& v) { return v.deltaLights; });
-    return fitMaterials(observations, record, problem.start, o);
+    FitResult result = fitMaterials(observations, record, problem.start, o);
+    // A converged fit of an image its scene misstates is a confident wrong answer. Part of the
+    // fit's time.
+    const auto checkBegin = std::chrono::steady_clock::now();
+    std::vector<PhongMaterial> fitted;
+    for (const MaterialFit& m : result.materials) fitted.push_back(m.material());
+    const double exposure = result.exposure ? result.exposure->value : 1.0;
+    for (const SceneView& v : problem.views) {
+        result.edgeChecks.push_back(edgeAgreement(v, fitted, exposure, imageSpp(v, recording),
+                                                  recording.seed, recording.threads));
+        if (result.edgeChecks.back().disagrees && result.converged) {
+            result.converged = false;
+            result.stopReason = "images disagree";
+        }
+    }
+    result.timeSeconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - checkBegin).count();
+    return result;
 }
 
 namespace {
@@ -424,6 +444,17 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
              {"pixels_without_data", v.noData},
              {"pixel_filter", pixelFilterReport(v.renderer->scene().sensor, v.renderedAs)},
              {"image_rendered_as", renderedAsJson(v, recording)}});
+    }
+    for (std::size_t k = 0; k < result.edgeChecks.size() && k < problem.views.size(); ++k) {
+        const EdgeCheck& e = result.edgeChecks[k];
+        report["views"][k]["edges"] = {
+            {"pixels_compared", e.pixels},
+            {"median_deviation", e.medianDeviation},
+            {"misfit", e.misfit},
+            {"better_pixel_filter", e.betterFilter},
+            {"better_misfit", e.betterMisfit},
+            {"agree",
+             e.pixels < kLeastEdgePixels ? nlohmann::json() : nlohmann::json(!e.disagrees)}};
     }
     fs::create_directories(dir);
     const fs::path out(dir);

@@ -64,6 +64,8 @@ struct SceneView {
     // directly (loadSceneFit): they see them only through other surfaces, if at all.
     std::size_t offMaterials = 0;
     RenderedAs renderedAs;  // how the image was rendered (render_sidecar.h)
+    // The pixels a fitted material's silhouette crosses (edge_agreement.h, edgePixels).
+    std::vector<std::uint32_t> edges;
 };
 
 struct SceneFitProblem {

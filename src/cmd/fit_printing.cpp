@@ -18,6 +18,9 @@ std::string notConvergedBecause(const FitResult& result) {
     if (result.stopReason == "memory")
         return "the next round's paths would not fit in the memory left (--max-memory)";
     if (result.stopReason == "interrupted") return "interrupted";
+    if (result.stopReason == "images disagree")
+        return "the estimate settled, but the images disagree with their scenes where the "
+               "scenes' edges cross pixels (see the warning above)";
     if (result.stopReason == "precision not met")
         return fmt::format(
             "the estimate stopped moving, but not every parameter is as precise as --precision "
@@ -110,6 +113,31 @@ void printSceneWarnings(const SceneFitProblem& problem) {
                 v.scenePath, v.imagePath);
 }
 
+namespace {
+
+// An image that disagrees with its scene where the scene's edges cross pixels (edge_agreement.h).
+void printEdgeWarning(const SceneView& v, const EdgeCheck& e) {
+    if (!e.disagrees) return;
+    const SensorDesc& film = v.renderer->scene().sensor;
+    const std::string stated = pixelFilterJson(film).dump();
+    if (!e.betterFilter.empty())
+        fmt::print(
+            "warning: {} disagrees with {} where its edges cross pixels: rendered anew at this "
+            "estimate with a {} pixel filter, {} edge pixels fit the image far better than with "
+            "the scene's {} (squared deviations {:.4g} against {:.4g}): the estimate is likely "
+            "wrong; name the image's filter in the film's <rfilter>\n",
+            v.imagePath, v.scenePath, e.betterFilter, e.pixels, stated, e.betterMisfit, e.misfit);
+    else
+        fmt::print(
+            "warning: {} disagrees with {} where its edges cross pixels: rendered anew at this "
+            "estimate, {} edge pixels differ from the image by a median {:.1f} times their "
+            "noise: the estimate is likely wrong; check the camera, the shapes and the film's "
+            "pixel filter\n",
+            v.imagePath, v.scenePath, e.pixels, e.medianDeviation);
+}
+
+}  // namespace
+
 void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool grey,
                    const std::string& dir) {
     for (std::size_t s = 0; s < result.materials.size(); ++s) {
@@ -131,6 +159,8 @@ void printSceneFit(const SceneFitProblem& problem, const FitResult& result, bool
         noData += v.noData, masked += v.masked, clipped += v.clipped;
         nonFinite += v.nonFinite, indirect += v.offMaterials;
     }
+    for (std::size_t k = 0; k < result.edgeChecks.size() && k < problem.views.size(); ++k)
+        printEdgeWarning(problem.views[k], result.edgeChecks[k]);
     std::string leftOut = problem.views[0].depthNote;
     for (const auto& [count, why] : {
              std::pair{noData, "outside the image's data window"},

@@ -44,6 +44,16 @@ protected:
     static void TearDownTestSuite() { fs::remove_all(dir_); }
 
     static std::string path(const std::string& name) { return (dir_ / name).string(); }
+    // kSphere with its film's box filter replaced by `filter`, written as `name`.
+    static std::string sceneWithFilter(const std::string& name, const std::string& filter) {
+        std::ifstream in(kSphere);
+        std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const std::string box = R"(<rfilter type="box"/>)";
+        EXPECT_NE(text.find(box), std::string::npos);
+        text.replace(text.find(box), box.size(), filter);
+        std::ofstream(path(name)) << text;
+        return path(name);
+    }
     static test::ProcessResult run(std::vector<std::string> args) {
         args.insert(args.begin(), PHONGFIT_EXE);
         for (const char* d : {"width", "height"}) {
@@ -377,18 +387,8 @@ TEST_F(FitCommand, DemoRendersFitsBackAndPrintsTheErrors) {
 // 20 standard errors low, "converged"). Where neither the film nor a sidecar names it, the fit
 // takes phongfit's box and warns: Mitsuba's default is a Gaussian.
 TEST_F(FitCommand, TheImagesPixelFilterIsTheScenesOrTheFitWarns) {
-    std::ifstream in(kSphere);
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const std::string box = R"(<rfilter type="box"/>)";
-    ASSERT_NE(text.find(box), std::string::npos);
-    const auto scene = [&](const std::string& name, const std::string& filter) {
-        std::string s = text;
-        s.replace(s.find(box), box.size(), filter);
-        std::ofstream(path(name)) << s;
-        return path(name);
-    };
-    const std::string gaussian = scene("gaussian.xml", R"(<rfilter type="gaussian"/>)");
-    const std::string unnamed = scene("unnamed.xml", "");
+    const std::string gaussian = sceneWithFilter("gaussian.xml", R"(<rfilter type="gaussian"/>)");
+    const std::string unnamed = sceneWithFilter("unnamed.xml", "");
     ASSERT_EQ(
         run({"render", gaussian, "-o", path("gaussian.exr"), "--spp", "16", "--quiet"}).exitCode,
         0);
@@ -430,6 +430,44 @@ TEST_F(FitCommand, TheImagesPixelFilterIsTheScenesOrTheFitWarns) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
     EXPECT_EQ(filter("named"), nlohmann::json({{"type", "box"}, {"from", "scene"}}));
+}
+
+// Without a sidecar, an image's edges show the filter a scene misstates: the fit names it and
+// does not call its estimate converged (edge_agreement.h); the scene that states it agrees.
+TEST_F(FitCommand, AnImageWhoseEdgesShowAnotherPixelFilterIsNotConverged) {
+    const std::string gaussian =
+        sceneWithFilter("gaussian_edges.xml", R"(<rfilter type="gaussian"/>)");
+    const std::string image = path("gaussian_edges.exr");
+    ASSERT_EQ(run({"render", gaussian, "-o", image, "--spp", "16", "--quiet"}).exitCode, 0);
+    fs::remove(image + ".json");
+    const auto fit = [&](const std::string& scene, const std::string& out) {
+        const auto r =
+            run({"fit", "--view", scene + ":" + image, "--material", "sphere", "-o", path(out)});
+        EXPECT_EQ(r.exitCode, 0) << r.err;
+        return std::pair{r.out, nlohmann::json::parse(std::ifstream(path(out + "/fit.json")))};
+    };
+
+    const auto [out, report] = fit(kSphere, "edges_box");
+    EXPECT_NE(out.find("warning: " + image + " disagrees with " + kSphere +
+                       " where its edges cross pixels: rendered anew at this estimate with a "
+                       "gaussian stddev 0.5 pixel filter"),
+              std::string::npos)
+        << out;
+    EXPECT_NE(out.find("(not converged: the estimate settled, but the images disagree"),
+              std::string::npos)
+        << out;
+    EXPECT_FALSE(report["converged"].get<bool>());
+    EXPECT_EQ(report["stop_reason"], "images disagree");
+    const nlohmann::json& edges = report["views"][0]["edges"];
+    EXPECT_EQ(edges["agree"], false);
+    EXPECT_EQ(edges["better_pixel_filter"], "gaussian stddev 0.5");
+    EXPECT_LT(edges["better_misfit"].get<double>(), 0.1 * edges["misfit"].get<double>());
+
+    const auto [outStated, stated] = fit(gaussian, "edges_gaussian");
+    EXPECT_EQ(outStated.find("disagrees"), std::string::npos) << outStated;
+    EXPECT_EQ(stated["views"][0]["edges"]["agree"], true);
+    EXPECT_EQ(stated["views"][0]["edges"]["better_pixel_filter"], "");
+    EXPECT_NE(stated["stop_reason"], "images disagree");
 }
 
 TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {

@@ -1,0 +1,172 @@
+#include "edge_agreement.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "film_window.h"
+
+namespace phongfit {
+
+namespace {
+
+// Paths a pixel of the render: as many as the image's (the difference's noise then twice the
+// image's variance, which the deviations allow for), within what keeps the check a small part of
+// the fit.
+int renderSpp(int imageSpp) { return imageSpp > 0 ? std::clamp(imageSpp, 512, 4096) : 4096; }
+
+double median(std::vector<double> values) {
+    const auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
+    std::nth_element(values.begin(), mid, values.end());
+    return *mid;
+}
+
+// A chosen pixel, over the sum of its channels: the render and one sample's standard deviation
+// there (the channels' added, as if they moved as one).
+struct Rendered {
+    double value, sampleStd;
+};
+
+std::vector<Rendered> renderPixels(const Renderer& renderer, const SceneView& v,
+                                   const std::vector<std::uint32_t>& chosen,
+                                   const std::vector<PhongMaterial>& fitted, double exposure,
+                                   const RenderOptions& common) {
+    const Observation& o = v.observation;
+    std::vector<std::uint8_t> flags(std::size_t(o.width) * std::size_t(o.height), 0);
+    for (std::uint32_t p : chosen) flags[p] = 1;
+    RenderOptions options = common;
+    options.window = boundingWindow(flags, o.width, o.height);
+    const std::vector<std::uint8_t> rendered = cropped(flags, o.width, options.window);
+    options.rendered = rendered;
+    const std::size_t slots = std::min(fitted.size(), v.fittedBsdfs.size());
+    options.bsdfs.assign(v.fittedBsdfs.begin(), v.fittedBsdfs.begin() + std::ptrdiff_t(slots));
+    options.bsdfParams.assign(fitted.begin(), fitted.begin() + std::ptrdiff_t(slots));
+    const RenderResult r = renderer.render(options);
+    std::vector<Rendered> out;
+    for (std::uint32_t p : chosen) {
+        const int x = int(p % std::uint32_t(o.width)) - options.window.x0;
+        const int y = int(p / std::uint32_t(o.width)) - options.window.y0;
+        const std::size_t q = std::size_t(y) * std::size_t(options.window.width) + std::size_t(x);
+        Rendered c{0, 0};
+        for (std::size_t ch = 0; ch < 3; ++ch) {
+            c.value += exposure * r.rgb[3 * q + ch];
+            c.sampleStd += exposure * std::sqrt(r.variance[3 * q + ch] * double(r.sampleCount[q]));
+        }
+        out.push_back(c);
+    }
+    return out;
+}
+
+// Per chosen pixel with light in the image or the render: |image - render| over the noise of
+// their difference and kEdgeTolerance. Pixels dark in both (the unlit side of a silhouette) agree
+// whatever the filter: left out.
+std::vector<double> deviations(const std::vector<double>& image,
+                               const std::vector<Rendered>& rendered, int imageSpp, int renderSpp) {
+    double brightest = 0;
+    for (std::size_t k = 0; k < image.size(); ++k)
+        brightest = std::max({brightest, std::abs(image[k]), std::abs(rendered[k].value)});
+    std::vector<double> out;
+    for (std::size_t k = 0; k < image.size(); ++k) {
+        const Rendered& c = rendered[k];
+        const double level = std::max(std::abs(image[k]), std::abs(c.value));
+        if (level <= 1e-3 * brightest) continue;
+        const double noise =
+            c.sampleStd * c.sampleStd * ((imageSpp > 0 ? 1.0 / imageSpp : 0.0) + 1.0 / renderSpp);
+        const double tolerance = kEdgeTolerance * level;
+        out.push_back(std::abs(image[k] - c.value) / std::sqrt(noise + tolerance * tolerance));
+    }
+    return out;
+}
+
+double sumOfSquares(const std::vector<double>& values) {
+    double sum = 0;
+    for (double x : values) sum += x * x;
+    return sum;
+}
+
+std::string filterName(const PixelFilterName& f) {
+    return f.width == nullptr ? f.type : fmt::format("{} {} {:g}", f.type, f.width, f.defaultWidth);
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> edgePixels(const std::vector<int>& seen, int width, int height,
+                                      const std::vector<int>& fitted) {
+    const auto isFitted = [&](int bsdf) {
+        return std::find(fitted.begin(), fitted.end(), bsdf) != fitted.end();
+    };
+    const auto differs = [&](std::size_t p, std::size_t q) {
+        return seen[p] != seen[q] && (isFitted(seen[p]) || isFitted(seen[q]));
+    };
+    std::vector<std::uint32_t> edges;
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
+            if ((x > 0 && differs(p, p - 1)) || (x + 1 < width && differs(p, p + 1)) ||
+                (y > 0 && differs(p, p - std::size_t(width))) ||
+                (y + 1 < height && differs(p, p + std::size_t(width))))
+                edges.push_back(std::uint32_t(p));
+        }
+    return edges;
+}
+
+EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fitted,
+                        double exposure, int imageSpp, std::uint64_t seed, int threads) {
+    const Observation& o = v.observation;
+    std::vector<std::uint32_t> used;
+    for (std::uint32_t p : v.edges)
+        if (o.valid[p]) used.push_back(p);
+    const std::size_t count = std::min(used.size(), kMostEdgePixels);
+    std::vector<std::uint32_t> chosen;
+    for (std::size_t k = 0; k < count; ++k) chosen.push_back(used[k * used.size() / count]);
+    EdgeCheck check;
+    if (chosen.size() < kLeastEdgePixels) return check;
+    std::vector<double> image;
+    for (std::uint32_t p : chosen)
+        image.push_back(double(o.rgb[3 * std::size_t(p)]) + o.rgb[3 * std::size_t(p) + 1] +
+                        o.rgb[3 * std::size_t(p) + 2]);
+
+    RenderOptions options;
+    options.spp = renderSpp(imageSpp);
+    options.seed = seed * 7919 + 15485863;  // independent of the recordings and the noise renders
+    options.pixelSampler = PixelSamplerType::Independent;
+    options.sampler = v.renderedAs.sampler;
+    options.mis = v.renderedAs.mis;
+    options.threads = threads;
+    options.maxDepth = v.maxDepth;
+    options.quiet = true;
+    const std::vector<double> stated =
+        deviations(image, renderPixels(*v.renderer, v, chosen, fitted, exposure, options), imageSpp,
+                   options.spp);
+    check.pixels = stated.size();
+    if (check.pixels < kLeastEdgePixels) return check;
+    check.medianDeviation = median(stated);
+    check.misfit = sumOfSquares(stated);
+    check.disagrees = check.medianDeviation > kEdgeDisagreement;
+
+    // The other filters, each in a scene of its own (the check runs once, after the fit).
+    const SensorDesc& film = v.renderer->scene().sensor;
+    for (const PixelFilterName& f : kPixelFilters) {
+        if (f.filter == film.filter && (f.width == nullptr || f.defaultWidth == film.filterWidth))
+            continue;
+        Scene scene = v.renderer->scene();
+        scene.sensor.filter = f.filter;
+        scene.sensor.filterWidth = f.defaultWidth;
+        const std::vector<double> other = deviations(
+            image, renderPixels(Renderer(std::move(scene)), v, chosen, fitted, exposure, options),
+            imageSpp, options.spp);
+        if (other.size() < kLeastEdgePixels) continue;
+        const double misfit = sumOfSquares(other);
+        const bool better =
+            misfit < kFilterPreference * check.misfit && misfit < check.misfit - kFilterEvidence;
+        if (better && (check.betterFilter.empty() || misfit < check.betterMisfit)) {
+            check.betterFilter = filterName(f);
+            check.betterMisfit = misfit;
+        }
+    }
+    if (!check.betterFilter.empty()) check.disagrees = true;
+    return check;
+}
+
+}  // namespace phongfit

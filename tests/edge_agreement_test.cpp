@@ -1,0 +1,130 @@
+// An image against its scene where the scene's edges cross pixels (edge_agreement.h): images
+// rendered with each pixel filter, read through scenes that state each filter, at the truth.
+#include "edge_agreement.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <string>
+
+#include "render_to_exr.h"
+#include "scene_fit.h"
+
+namespace phongfit {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kScenes = PHONGFIT_SCENES_DIR;
+
+TEST(EdgePixels, LieOnBothSidesOfAFittedMaterialsSilhouette) {
+    // 6 x 5: a fitted bsdf 0 in a 3 x 3 block, bsdf 1 (not fitted) beside it, nothing elsewhere.
+    const std::vector<int> seen = {-1, -1, -1, -1, -1, -1,  //
+                                   -1, 0,  0,  0,  1,  -1,  //
+                                   -1, 0,  0,  0,  1,  1,   //
+                                   -1, 0,  0,  0,  -1, -1,  //
+                                   -1, -1, -1, -1, -1, -1};
+    const std::vector<std::uint32_t> expected = {1,  2,  3,  6,  7,  8,  9,  10, 12, 13,
+                                                 15, 16, 18, 19, 20, 21, 22, 25, 26, 27};
+    EXPECT_EQ(edgePixels(seen, 6, 5, {0}), expected);
+    // bsdf 1's edges with nothing are no fitted material's.
+    EXPECT_EQ(edgePixels(seen, 6, 5, {1}),
+              (std::vector<std::uint32_t>{4, 9, 10, 11, 15, 16, 17, 22, 23}));
+    EXPECT_TRUE(edgePixels(seen, 6, 5, {}).empty());
+}
+
+class EdgeAgreementTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = fs::temp_directory_path() / ("phongfit_edges_" + std::to_string(::getpid()));
+        fs::create_directories(dir_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+
+    // `base` with its film's <rfilter type="box"/> replaced by `filter`.
+    std::string scene(const std::string& base, const std::string& name,
+                      const std::string& filter) const {
+        std::ifstream in(kScenes + "/" + base);
+        std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const std::string box = R"(<rfilter type="box"/>)";
+        EXPECT_NE(text.find(box), std::string::npos) << base;
+        text.replace(text.find(box), box.size(), filter);
+        const std::string path = (dir_ / (name + ".xml")).string();
+        std::ofstream(path) << text;
+        return path;
+    }
+
+    // The edges of `imageScene`'s render, read through `fitScene`, at the scene's own material.
+    EdgeCheck check(const std::string& imageScene, const std::string& fitScene) const {
+        const std::string image = (dir_ / (fs::path(imageScene).stem().string() + ".exr")).string();
+        if (!fs::exists(image)) test::renderToExr(imageScene, defines_, kImageSpp, image);
+        SceneFitInputs in;
+        in.views = {{fitScene, image}};
+        in.materials = {"sphere"};
+        in.defines = defines_;
+        const SceneFitProblem problem = loadSceneFit(in);
+        const SceneView& v = problem.views[0];
+        const PhongMaterial truth = v.renderer->scene().bsdfs[v.fittedBsdfs[0]].params;
+        return edgeAgreement(v, {truth}, 1.0, kImageSpp, 0, 0);
+    }
+
+    static constexpr int kImageSpp = 256;
+    const std::map<std::string, std::string> defines_ = {{"width", "64"}, {"height", "64"}};
+    fs::path dir_;
+};
+
+// Each image agrees with the scene that states its filter, and with no other: the filter it was
+// rendered with fits its edges far better, and is named.
+TEST_F(EdgeAgreementTest, TellsAnImagesPixelFilterFromItsScenes) {
+    const std::map<std::string, std::string> filters = {
+        {"box", R"(<rfilter type="box"/>)"},
+        {"gaussian stddev 0.5", R"(<rfilter type="gaussian"/>)"},
+        {"tent radius 1", R"(<rfilter type="tent"/>)"}};
+    std::map<std::string, std::string> scenes;
+    for (const auto& [name, filter] : filters)
+        scenes[name] = scene("sphere_point.xml", name.substr(0, name.find(' ')), filter);
+    for (const auto& [rendered, imageScene] : scenes)
+        for (const auto& [stated, fitScene] : scenes) {
+            const EdgeCheck e = check(imageScene, fitScene);
+            SCOPED_TRACE("rendered with " + rendered + ", stated " + stated);
+            EXPECT_GE(e.pixels, kLeastEdgePixels);
+            EXPECT_EQ(e.disagrees, rendered != stated);
+            EXPECT_EQ(e.betterFilter, rendered == stated ? "" : rendered);
+            if (rendered == stated) {
+                EXPECT_LT(e.medianDeviation, 1.5);
+            }
+        }
+}
+
+// A camera that is not the image's: the silhouette a pixel off, under the filter the image has.
+TEST_F(EdgeAgreementTest, ACameraThatIsNotTheImagesDisagrees) {
+    const std::string box = scene("sphere_point.xml", "box", R"(<rfilter type="box"/>)");
+    std::ifstream in(box);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string lookat = R"(origin="0, 0, 6" target="0, 0, 0")";
+    ASSERT_NE(text.find(lookat), std::string::npos);
+    text.replace(text.find(lookat), lookat.size(), R"(origin="0.05, 0, 6" target="0.05, 0, 0")");
+    const std::string moved = (dir_ / "moved.xml").string();
+    std::ofstream(moved) << text;
+    const EdgeCheck e = check(box, moved);
+    EXPECT_TRUE(e.disagrees);
+    EXPECT_GT(e.medianDeviation, kEdgeDisagreement);
+}
+
+// The Cornell box (walls, indirect light, an area light) at its own filter: edges against the
+// walls agree within their noise.
+TEST_F(EdgeAgreementTest, TheCornellBoxAgreesWithItsOwnImage) {
+    const std::string cornell = kScenes + "/cornell_area.xml";
+    const EdgeCheck e = check(cornell, cornell);
+    EXPECT_GE(e.pixels, kLeastEdgePixels);
+    EXPECT_FALSE(e.disagrees);
+    EXPECT_LT(e.medianDeviation, 1.5);
+    EXPECT_EQ(e.betterFilter, "");
+}
+
+}  // namespace
+}  // namespace phongfit
