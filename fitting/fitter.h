@@ -190,9 +190,10 @@ struct FitOptions {
 
 // Whether a view's image agrees with its scene where the geometry's edges cross pixels.
 struct EdgeCheck {
-    std::size_t pixels = 0;      // edge pixels compared (below kLeastEdgePixels: no verdict)
-    double medianDeviation = 0;  // |image - render| over their noise, the median over those
-    double misfit = 0;           // the sum of the squared deviations
+    std::size_t pixels = 0;  // edge pixels compared (below kLeastEdgePixels: no verdict)
+    // |image - render| over their noise, the median over those whose centre sees a fitted material
+    double medianDeviation = 0;
+    double misfit = 0;  // the sum of the squared deviations
     // Rendered with another of the pixel filters (kPixelFilters, at its default width) whose
     // misfit is far below the scene's filter's: its name ("gaussian stddev 0.5"), and misfit.
     std::string betterFilter;

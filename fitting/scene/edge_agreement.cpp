@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
+#include <utility>
 
 #include "film_window.h"
 
@@ -58,9 +60,9 @@ std::vector<Rendered> renderPixels(const Renderer& renderer, const SceneView& v,
     return out;
 }
 
-// Per chosen pixel with light in the image or the render: |image - render| over the noise of
-// their difference and kEdgeTolerance. Pixels dark in both (the unlit side of a silhouette) agree
-// whatever the filter: left out.
+// Per chosen pixel: |image - render| over the noise of their difference and kEdgeTolerance; -1
+// where the pixel is dark in both (the unlit side of a silhouette), which agrees whatever the
+// filter.
 std::vector<double> deviations(const std::vector<double>& image,
                                const std::vector<Rendered>& rendered, int imageSpp, int renderSpp) {
     double brightest = 0;
@@ -70,26 +72,29 @@ std::vector<double> deviations(const std::vector<double>& image,
     for (std::size_t k = 0; k < image.size(); ++k) {
         const Rendered& c = rendered[k];
         const double level = std::max(std::abs(image[k]), std::abs(c.value));
-        if (level <= 1e-3 * brightest) continue;
         const double noise =
             c.sampleStd * c.sampleStd * ((imageSpp > 0 ? 1.0 / imageSpp : 0.0) + 1.0 / renderSpp);
         const double tolerance = kEdgeTolerance * level;
-        out.push_back(std::abs(image[k] - c.value) / std::sqrt(noise + tolerance * tolerance));
+        out.push_back(level <= 1e-3 * brightest ? -1.0
+                                                : std::abs(image[k] - c.value) /
+                                                      std::sqrt(noise + tolerance * tolerance));
     }
     return out;
 }
 
-double sumOfSquares(const std::vector<double>& values) {
-    double sum = 0;
-    for (double x : values) sum += x * x;
-    return sum;
-}
-
-std::string filterName(const PixelFilterName& f) {
-    return f.width == nullptr ? f.type : fmt::format("{} {} {:g}", f.type, f.width, f.defaultWidth);
+// The pixels with light, and their squared deviations' sum.
+std::pair<std::size_t, double> litMisfit(const std::vector<double>& deviations) {
+    std::pair<std::size_t, double> out{0, 0.0};
+    for (double d : deviations)
+        if (d >= 0) out = {out.first + 1, out.second + d * d};
+    return out;
 }
 
 }  // namespace
+
+std::string pixelFilterLabel(const PixelFilterName& f) {
+    return f.width == nullptr ? f.type : fmt::format("{} {} {:g}", f.type, f.width, f.defaultWidth);
+}
 
 std::vector<std::uint32_t> edgePixels(const std::vector<int>& seen, int width, int height,
                                       const std::vector<int>& fitted) {
@@ -139,11 +144,16 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
     const std::vector<double> stated =
         deviations(image, renderPixels(*v.renderer, v, chosen, fitted, exposure, options), imageSpp,
                    options.spp);
-    check.pixels = stated.size();
+    std::tie(check.pixels, check.misfit) = litMisfit(stated);
     if (check.pixels < kLeastEdgePixels) return check;
-    check.medianDeviation = median(stated);
-    check.misfit = sumOfSquares(stated);
-    check.disagrees = check.medianDeviation > kEdgeDisagreement;
+    // The median over the pixels whose centre sees a fitted material: outside, the background's
+    // own pixels (an environment another renderer interpolates otherwise) are no part of the fit.
+    std::vector<double> inside;
+    for (std::size_t k = 0; k < chosen.size(); ++k)
+        if (stated[k] >= 0 && v.direct[chosen[k]]) inside.push_back(stated[k]);
+    check.medianDeviation = inside.empty() ? 0.0 : median(inside);
+    check.disagrees =
+        inside.size() * 2 >= kLeastEdgePixels && check.medianDeviation > kEdgeDisagreement;
 
     // The other filters, each in a scene of its own (the check runs once, after the fit).
     const SensorDesc& film = v.renderer->scene().sensor;
@@ -156,12 +166,12 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
         const std::vector<double> other = deviations(
             image, renderPixels(Renderer(std::move(scene)), v, chosen, fitted, exposure, options),
             imageSpp, options.spp);
-        if (other.size() < kLeastEdgePixels) continue;
-        const double misfit = sumOfSquares(other);
+        const auto [lit, misfit] = litMisfit(other);
+        if (lit < kLeastEdgePixels) continue;
         const bool better =
             misfit < kFilterPreference * check.misfit && misfit < check.misfit - kFilterEvidence;
         if (better && (check.betterFilter.empty() || misfit < check.betterMisfit)) {
-            check.betterFilter = filterName(f);
+            check.betterFilter = pixelFilterLabel(f);
             check.betterMisfit = misfit;
         }
     }

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "fitter.h"
@@ -18,8 +19,9 @@ namespace phongfit {
 inline constexpr std::size_t kMostEdgePixels = 64;
 // A verdict needs this many edge pixels with light in the image or the render.
 inline constexpr std::size_t kLeastEdgePixels = 8;
-// The median deviation (image against the render, over their noise) above which a view's image
-// disagrees with its scene: 0.67 where they agree, and the noise modelled is independent
+// The median deviation (image against the render, over their noise, at the edge pixels whose
+// centre sees a fitted material, at least kLeastEdgePixels / 2 of them) above which a view's
+// image disagrees with its scene: 0.67 where they agree, and the noise modelled is independent
 // samples', at least a stratified image's.
 inline constexpr double kEdgeDisagreement = 4;
 // Differences the noise does not explain but a faithful image may hold (another renderer's
@@ -30,6 +32,10 @@ inline constexpr double kEdgeTolerance = 0.02;
 // 5 standard deviations.
 inline constexpr double kFilterPreference = 0.5;
 inline constexpr double kFilterEvidence = 25;
+
+// A filter at its default width as EdgeCheck::betterFilter names it: "box", "gaussian stddev 0.5",
+// "tent radius 1".
+std::string pixelFilterLabel(const PixelFilterName& f);
 
 // The pixels of a `width` x `height` film (row-major, Renderer::bsdfSeen's `seen` per pixel)
 // whose centre sees another bsdf, or nothing, than a 4-neighbour's, one of the two a `fitted` one.

@@ -107,11 +107,17 @@ void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
 }
 
 SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
-                   const std::vector<std::uint8_t>* mask) {
+                   const std::vector<std::uint8_t>* mask,
+                   const std::optional<PixelFilterName>& edgeFilter) {
     SceneView v;
     v.scenePath = spec.scenePath;
     v.imagePath = spec.imagePath;
     Scene scene = loadScene(v.scenePath, in.defines);
+    if (edgeFilter && !scene.sensor.filterNamed) {
+        scene.sensor.filter = edgeFilter->filter;
+        scene.sensor.filterWidth = edgeFilter->defaultWidth;
+        v.filterFromEdges = true;
+    }
     v.fittedBsdfs = fittedBsdfs(scene, v.scenePath, in.materials);
     v.deltaLights =
         std::none_of(scene.shapes.begin(), scene.shapes.end(),
@@ -288,7 +294,10 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
             const Scene first = loadScene(spec.scenePath, inputs.defines);
             mask = readMask(inputs.maskPath, first.sensor.width, first.sensor.height);
         }
-        problem.views.push_back(loadView(spec, inputs, mask ? &*mask : nullptr));
+        const std::size_t k = problem.views.size();
+        problem.views.push_back(
+            loadView(spec, inputs, mask ? &*mask : nullptr,
+                     k < inputs.edgeFilters.size() ? inputs.edgeFilters[k] : std::nullopt));
     }
     if (!inputs.keepIndirect) leaveOutIndirectPixels(problem.views, inputs.materials.size());
     for (int b : problem.views[0].fittedBsdfs) {
@@ -300,6 +309,22 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
         problem.start.push_back(m);
     }
     return problem;
+}
+
+std::vector<std::optional<PixelFilterName>> edgeFilters(const SceneFitProblem& problem,
+                                                        const FitResult& result) {
+    std::vector<std::optional<PixelFilterName>> filters(problem.views.size());
+    bool any = false;
+    for (std::size_t k = 0; k < problem.views.size() && k < result.edgeChecks.size(); ++k) {
+        const SceneView& v = problem.views[k];
+        if (v.filterFromEdges || !filterAssumed(v.renderer->scene().sensor, v.renderedAs)) continue;
+        for (const PixelFilterName& f : kPixelFilters)
+            if (pixelFilterLabel(f) == result.edgeChecks[k].betterFilter) {
+                filters[k] = f;
+                any = true;
+            }
+    }
+    return any ? filters : std::vector<std::optional<PixelFilterName>>{};
 }
 
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
@@ -394,6 +419,13 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
 
 namespace {
 
+// What fit.json says of a view's pixel filter where its image's edges chose it.
+nlohmann::json edgeFilterReport(const SceneView& v) {
+    nlohmann::json report = pixelFilterJson(v.renderer->scene().sensor);
+    report["from"] = "edges";
+    return report;
+}
+
 // What fit.json says of a view's image noise as rendered (FitOptions::renderedNoise).
 nlohmann::json renderedAsJson(const SceneView& v, const SceneRecording& recording) {
     const RenderedAs& as = v.renderedAs;
@@ -442,7 +474,9 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
              {"pixels_off_the_materials", v.offMaterials},
              {"pixels_non_finite", v.nonFinite},
              {"pixels_without_data", v.noData},
-             {"pixel_filter", pixelFilterReport(v.renderer->scene().sensor, v.renderedAs)},
+             {"pixel_filter", v.filterFromEdges
+                                  ? edgeFilterReport(v)
+                                  : pixelFilterReport(v.renderer->scene().sensor, v.renderedAs)},
              {"image_rendered_as", renderedAsJson(v, recording)}});
     }
     for (std::size_t k = 0; k < result.edgeChecks.size() && k < problem.views.size(); ++k) {

@@ -36,6 +36,9 @@ struct SceneFitInputs {
     // Start values replacing the first view's scene values, for every material.
     std::optional<Color3> kd, ks;
     std::optional<double> n;
+    // Per view, or empty: the pixel filter a film that names none takes instead of phongfit's box,
+    // where a fit found the image's edges to show it (edgeFilters).
+    std::vector<std::optional<PixelFilterName>> edgeFilters;
 };
 
 // One view, read and checked.
@@ -66,6 +69,9 @@ struct SceneView {
     RenderedAs renderedAs;  // how the image was rendered (render_sidecar.h)
     // The pixels a fitted material's silhouette crosses (edge_agreement.h, edgePixels).
     std::vector<std::uint32_t> edges;
+    // The film names no filter, and has the one the image's edges showed
+    // (SceneFitInputs::edgeFilters).
+    bool filterFromEdges = false;
 };
 
 struct SceneFitProblem {
@@ -98,6 +104,14 @@ struct SceneRecording {
 SceneFitProblem loadSceneFit(const SceneFitInputs& inputs);
 
 // The rounds: records each view at the current estimate and fits (fitMaterials).
+// Per view, the filter its image's edges fit far better (FitResult::edgeChecks) where its film
+// names none and no sidecar says which made the image (filterAssumed), for
+// SceneFitInputs::edgeFilters; empty where no view has one. A fit of a Mitsuba image whose scene
+// leaves the filter to the renderer's default (Mitsuba's Gaussian, phongfit's box) is then run
+// again with the image's.
+std::vector<std::optional<PixelFilterName>> edgeFilters(const SceneFitProblem& problem,
+                                                        const FitResult& result);
+
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
                    const FitOptions& options);
 

@@ -95,13 +95,23 @@ void runSceneFit(const FitCli& a) {
     if (!a.kd.empty()) in.kd = parseColorOption(a.kd, "--kd");
     if (!a.ks.empty()) in.ks = parseColorOption(a.ks, "--ks");
     in.n = a.n;
-    const SceneFitProblem problem = loadSceneFit(in);
+    SceneFitProblem problem = loadSceneFit(in);
     printSceneWarnings(problem);
     const SceneRecording recording{a.spp,         a.directSpp,          a.seed,    a.threads,
                                    a.adaptiveSpp, !a.sampledAreaLights, a.imageSpp};
     if (!a.quiet)
         options.onRound = [&](const FitRound& r) { printRound(r, problem, a.fitExposure); };
-    const FitResult result = fitScene(problem, recording, options);
+    FitResult result = fitScene(problem, recording, options);
+    // A film that names no filter, whose image's edges show another than phongfit's box: fitted
+    // again with that one.
+    in.edgeFilters = edgeFilters(problem, result);
+    if (!in.edgeFilters.empty()) {
+        printEdgeFilters(problem, result, in.edgeFilters);
+        problem = loadSceneFit(in);
+        const double firstSeconds = result.timeSeconds;
+        result = fitScene(problem, recording, options);
+        result.timeSeconds += firstSeconds;
+    }
     writeSceneFit(problem, result, recording, a.compareSpp, a.output);
     printSceneFit(problem, result, a.grey, a.output);
 }

@@ -113,6 +113,18 @@ void printSceneWarnings(const SceneFitProblem& problem) {
                 v.scenePath, v.imagePath);
 }
 
+void printEdgeFilters(const SceneFitProblem& problem, const FitResult& result,
+                      const std::vector<std::optional<PixelFilterName>>& filters) {
+    for (std::size_t k = 0; k < filters.size() && k < result.edgeChecks.size(); ++k)
+        if (filters[k])
+            fmt::print(
+                "{}: its edges, rendered anew at the estimate, fit a {} pixel filter far better "
+                "than phongfit's box (squared deviations {:.4g} against {:.4g}), and neither the "
+                "film nor a sidecar names one: fitted again with it\n",
+                problem.views[k].imagePath, result.edgeChecks[k].betterFilter,
+                result.edgeChecks[k].betterMisfit, result.edgeChecks[k].misfit);
+}
+
 namespace {
 
 // An image that disagrees with its scene where the scene's edges cross pixels (edge_agreement.h).

@@ -1,7 +1,9 @@
 // What `fit` and `demo` print of a scene fit: the progress line per round and the result lines.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "fitter.h"
 #include "scene_fit.h"
@@ -11,6 +13,11 @@ namespace phongfit {
 // Before the fit: a warning per view whose pixel filter is phongfit's default (the film names no
 // <rfilter>, and no sidecar says what the image was rendered with), where Mitsuba's differs.
 void printSceneWarnings(const SceneFitProblem& problem);
+
+// The views whose film names no filter and whose image's edges showed another (edgeFilters'
+// `filters`): the fit runs again with it.
+void printEdgeFilters(const SceneFitProblem& problem, const FitResult& result,
+                      const std::vector<std::optional<PixelFilterName>>& filters);
 
 // One line per round on stderr, naming the materials: rmse, iterations, time, memory, values.
 void printRound(const FitRound& round, const SceneFitProblem& problem, bool fitExposure);

@@ -433,7 +433,8 @@ TEST_F(FitCommand, TheImagesPixelFilterIsTheScenesOrTheFitWarns) {
 }
 
 // Without a sidecar, an image's edges show the filter a scene misstates: the fit names it and
-// does not call its estimate converged (edge_agreement.h); the scene that states it agrees.
+// does not call its estimate converged (edge_agreement.h); the scene that states it agrees, and
+// one that names none takes it.
 TEST_F(FitCommand, AnImageWhoseEdgesShowAnotherPixelFilterIsNotConverged) {
     const std::string gaussian =
         sceneWithFilter("gaussian_edges.xml", R"(<rfilter type="gaussian"/>)");
@@ -468,6 +469,22 @@ TEST_F(FitCommand, AnImageWhoseEdgesShowAnotherPixelFilterIsNotConverged) {
     EXPECT_EQ(stated["views"][0]["edges"]["agree"], true);
     EXPECT_EQ(stated["views"][0]["edges"]["better_pixel_filter"], "");
     EXPECT_NE(stated["stop_reason"], "images disagree");
+
+    // A film that names no filter takes the one the edges show, and the fit runs again with it:
+    // the estimate is the stated Gaussian's.
+    const auto [outUnnamed, unnamed] =
+        fit(sceneWithFilter("unnamed_edges.xml", ""), "edges_unnamed");
+    EXPECT_NE(
+        outUnnamed.find(image + ": its edges, rendered anew at the estimate, fit a gaussian stddev "
+                                "0.5 pixel filter far better than phongfit's box"),
+        std::string::npos)
+        << outUnnamed;
+    EXPECT_EQ(outUnnamed.find("disagrees"), std::string::npos) << outUnnamed;
+    EXPECT_EQ(unnamed["views"][0]["pixel_filter"],
+              nlohmann::json({{"type", "gaussian"}, {"stddev", 0.5}, {"from", "edges"}}));
+    EXPECT_EQ(unnamed["views"][0]["edges"]["agree"], true);
+    EXPECT_EQ(unnamed["materials"], stated["materials"]);
+    EXPECT_GT(unnamed["time_s"].get<double>(), stated["time_s"].get<double>());
 }
 
 TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
