@@ -2,6 +2,7 @@
 // cases once fixed. Each case names the target that found it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
@@ -139,6 +140,22 @@ TEST(SceneRenderFuzz, CameraBeyondEmbreeRangeIsAnErrorNotAnAbort) {
 // tests/data/fuzz/ and as fuzz seeds.
 std::string fuzzInput(const std::string& name) {
     return std::string(PHONGFIT_TEST_DATA_DIR) + "/fuzz/" + name;
+}
+
+// scene_render_fuzz (session 76): the Cornell box with its right wall turned by 91 degrees and
+// its light moved down. Embree's high-quality build (spatial splits) asserted on the bounds of a
+// split of these ten triangles, and the render aborted; scenes are built at medium quality now.
+TEST(SceneRenderFuzz, WallsEmbreesSpatialSplitsAssertedOnRender) {
+    const test::TempDir dir("fuzz_regression");
+    const test::ProcessResult r =
+        test::runProcess({PHONGFIT_EXE, "render", fuzzInput("scene_spatial_split.xml"), "--spp",
+                          "1", "-o", dir.at("walls.exr")});
+    EXPECT_EQ(r.signal, 0) << r.err;
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    const Image image = readImage(dir.at("walls.exr"));
+    EXPECT_EQ(image.width, 4);
+    EXPECT_TRUE(std::all_of(image.rgb.begin(), image.rgb.end(),
+                            [](float v) { return std::isfinite(v) && v >= 0; }));
 }
 
 // exr_fuzz (a 10 s timeout under ASan, 1.2 GB resident without): dataWindow declared 59 bytes
