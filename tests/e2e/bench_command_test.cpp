@@ -278,6 +278,16 @@ TEST_F(Bench, RecoveryMatrixSubsetPassesAtDefaults) {
             << row.at(0);
     }
     EXPECT_EQ(lobes, 2);
+    // Rendered by the scenes they are fitted with, every image agrees with its scene at its edges
+    // (edge_agreement.h).
+    int checked = 0;
+    for (const fs::directory_entry& fit : fs::directory_iterator(path("fit/fits/spp4"))) {
+        const json report = json::parse(std::ifstream(fit.path() / "fit.json"));
+        EXPECT_EQ(report["views"][0]["edges"]["agree"], true) << fit.path();
+        EXPECT_NE(report["stop_reason"], "images disagree") << fit.path();
+        ++checked;
+    }
+    EXPECT_EQ(checked, 16);
     std::ifstream md(path("fit/summary.md"));
     const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
     EXPECT_NE(text.find("### sphere_small_area (4 spp/round)"), std::string::npos) << text;
