@@ -103,12 +103,17 @@ void runSceneFit(const FitCli& a) {
         options.onRound = [&](const FitRound& r) { printRound(r, problem, a.fitExposure); };
     FitResult result = fitScene(problem, recording, options);
     // A film that names no filter, whose image's edges show another than phongfit's box: fitted
-    // again with that one.
+    // again with that one, unless interrupted or what is left of the time budget would not hold
+    // its first round (as long as the first fit's).
     in.edgeFilters = edgeFilters(problem, result);
-    if (!in.edgeFilters.empty()) {
+    const bool timeLeft = options.timeBudget <= 0 ||
+                          (!result.rounds.empty() && options.timeBudget - result.timeSeconds >
+                                                         result.rounds.front().timeSeconds);
+    if (!in.edgeFilters.empty() && !result.interrupted && timeLeft) {
         printEdgeFilters(problem, result, in.edgeFilters);
         problem = loadSceneFit(in);
         const double firstSeconds = result.timeSeconds;
+        if (options.timeBudget > 0) options.timeBudget -= firstSeconds;
         result = fitScene(problem, recording, options);
         result.timeSeconds += firstSeconds;
     }
