@@ -86,12 +86,12 @@ bool Renderer::recordsByRings(int requested) const {
     return false;
 }
 
-TileLoop Renderer::tileLoop(const PathIntegrator& integrator, const FilmWindow& window,
-                            std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed,
-                            int threads, int samples) const {
+TileLoop Renderer::tileLoop(const PathIntegrator& integrator, const SensorDesc& sensor,
+                            const FilmWindow& window, std::optional<PixelSamplerType> pixelSampler,
+                            std::uint64_t seed, int threads, int samples) const {
     return TileLoop{.integrator = integrator,
                     .camera = camera_,
-                    .sensor = scene_.sensor,
+                    .sensor = sensor,
                     .window = window,
                     .pixelSampler = pixelSampler.value_or(scene_.sensor.pixelSampler),
                     .seed = seed,
@@ -147,8 +147,18 @@ RenderResult Renderer::render(const RenderOptions& options) const {
                                         [](std::uint8_t r) { return r != 0; }));
     RgbFilm film(width, height, spp, options.rendered);
     Progress progress("render", std::uint64_t(spp) * renderedPixels, "samples", options.quiet);
-    TileLoop loop =
-        tileLoop(integrator, window, options.pixelSampler, options.seed, options.threads, spp);
+    SensorDesc sensor = scene_.sensor;
+    if (options.pixelFilter) {
+        const double w = options.pixelFilter->width;
+        if (pixelFilterName(options.pixelFilter->filter).width != nullptr &&
+            !(w > 0 && w <= kMaxFilterWidth))
+            throw Error(
+                fmt::format("render: pixel filter width {} is not in (0, {}]", w, kMaxFilterWidth));
+        sensor.filter = options.pixelFilter->filter;
+        sensor.filterWidth = options.pixelFilter->width;
+    }
+    TileLoop loop = tileLoop(integrator, sensor, window, options.pixelSampler, options.seed,
+                             options.threads, spp);
     loop.progress = &progress;
     RenderStats stats = traceTiles(loop, film);
     progress.finish();
@@ -261,8 +271,9 @@ RecordResult Renderer::record(const RecordOptions& options) const {
 
     PathSetFilm film(width, height, std::move(paths), makeTiles(width, height).size(), filmRinged);
     RecordResult result;
-    result.stats = traceTiles(
-        tileLoop(integrator, window, pixelSampler, options.seed, options.threads, most), film);
+    result.stats = traceTiles(tileLoop(integrator, scene_.sensor, window, pixelSampler,
+                                       options.seed, options.threads, most),
+                              film);
     result.stats.spp = options.spp;
     result.paths = film.assemble(options.spp, int(options.fittedBsdfs.size()));
     return result;

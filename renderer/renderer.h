@@ -44,6 +44,9 @@ struct RenderOptions {
     // recording's fittedBsdfs and theta0: a fit renders at its estimate without a scene of its own.
     std::vector<int> bsdfs;
     std::vector<PhongMaterial> bsdfParams;
+    // The pixel filter in place of the film's (unset: the film's): an image's edges compared with
+    // other filters without a scene of their own (edge_agreement.h).
+    std::optional<PixelFilter> pixelFilter;
 };
 
 struct RenderResult {
@@ -128,10 +131,11 @@ private:
                                              const std::vector<PhongMaterial>& params,
                                              const char* command) const;
 
-    // The tile loop over this scene's film; `pixelSampler` unset: the scene's.
-    TileLoop tileLoop(const PathIntegrator& integrator, const FilmWindow& window,
-                      std::optional<PixelSamplerType> pixelSampler, std::uint64_t seed, int threads,
-                      int samples) const;
+    // The tile loop over `sensor`, this scene's film or one with another filter; `pixelSampler`
+    // unset: the scene's.
+    TileLoop tileLoop(const PathIntegrator& integrator, const SensorDesc& sensor,
+                      const FilmWindow& window, std::optional<PixelSamplerType> pixelSampler,
+                      std::uint64_t seed, int threads, int samples) const;
 
     Scene scene_;
     std::unique_ptr<EmbreeScene> geometry_;

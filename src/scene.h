@@ -111,6 +111,20 @@ inline const PixelFilterName& pixelFilterName(SensorDesc::Filter filter) {
     return kPixelFilters[0];
 }
 
+// A pixel filter's stddev or radius: its samples land this many pixels from the pixel at most
+// (a Gaussian's within a few stddevs), which keeps film positions and camera rays finite.
+inline constexpr double kMaxFilterWidth = 64;
+
+// A pixel filter and its width (SensorDesc::filterWidth; the box takes none): a render's in place
+// of the film's (RenderOptions::pixelFilter), the one an image's edges show (EdgeCheck).
+struct PixelFilter {
+    SensorDesc::Filter filter = SensorDesc::Filter::Box;
+    double width = 0;
+};
+inline PixelFilter pixelFilterOf(const SensorDesc& film) {
+    return {film.filter, pixelFilterName(film.filter).width != nullptr ? film.filterWidth : 0};
+}
+
 struct IntegratorDesc {
     std::string type = "path";  // "path" or "direct"
     int maxDepth = -1;          // Mitsuba's count: 1 = emitters seen directly; -1 = unbounded

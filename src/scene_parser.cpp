@@ -37,9 +37,6 @@ using namespace scene_xml;
 // the same ranges). A film of kMaxFilmPixels takes about 3 GB to render.
 constexpr int kMaxFilmSize = 16384;
 constexpr long kMaxFilmPixels = 1L << 25;
-// A pixel filter's stddev or radius: its samples land this many pixels from the pixel at most
-// (a Gaussian's within a few stddevs), which keeps film positions and camera rays finite.
-constexpr double kMaxFilterWidth = 64;
 constexpr int kMaxSampleCount = 1 << 20;
 constexpr int kMaxDepth = 1000;
 constexpr std::size_t kMaxSceneTriangles = kMaxMeshTriangles;

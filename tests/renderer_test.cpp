@@ -282,9 +282,10 @@ TEST(Determinism, PixelsLeftOutTakeNoSampleAndTheOthersAreTheFullRenders) {
 }
 
 // A window of the film renders its pixels as the whole film does, to the bit (their samples are
-// keyed by the pixel's index on the whole film), and a bsdf rendered with other parameters renders
-// as the scene that holds them: what a fit's noise renders of a few pixels at its estimate rely on.
-// A window off the film, and parameters that are not one per listed bsdf of the scene, are refused.
+// keyed by the pixel's index on the whole film), and a bsdf rendered with other parameters, or the
+// film with another pixel filter, renders as the scene that holds them: what a fit's renders of a
+// few pixels at its estimate rely on. A window off the film, parameters that are not one per
+// listed bsdf of the scene, and a filter width out of range are refused.
 TEST(Determinism, AWindowAndReplacedParametersRenderAsTheWholeSceneWithThem) {
     PhongMaterial m;
     m.kd = Color3(0.4, 0.5, 0.6);
@@ -298,6 +299,8 @@ TEST(Determinism, AWindowAndReplacedParametersRenderAsTheWholeSceneWithThem) {
     scene.sensor.filter = SensorDesc::Filter::Gaussian;
     Scene withOther = scene;
     withOther.bsdfs[0].params = other;
+    withOther.sensor.filter = SensorDesc::Filter::Tent;
+    withOther.sensor.filterWidth = 1.3;
     RenderOptions options;
     options.spp = 4;
     options.seed = 5;
@@ -307,6 +310,7 @@ TEST(Determinism, AWindowAndReplacedParametersRenderAsTheWholeSceneWithThem) {
     options.window = {7, 9, 5, 3};
     options.bsdfs = {0};
     options.bsdfParams = {other};
+    options.pixelFilter = PixelFilter{SensorDesc::Filter::Tent, 1.3};
     const RenderResult part = renderer.render(options);
     ASSERT_EQ(part.width, 5);
     ASSERT_EQ(part.height, 3);
@@ -320,7 +324,14 @@ TEST(Determinism, AWindowAndReplacedParametersRenderAsTheWholeSceneWithThem) {
     options.bsdfs = {};
     options.bsdfParams = {};
     EXPECT_NE(renderer.render(options).rgb, part.rgb);  // the scene's own parameters
+    options.bsdfs = {0};
     options.bsdfParams = {other};
+    options.pixelFilter.reset();
+    EXPECT_NE(renderer.render(options).rgb, part.rgb);  // the scene's own filter
+    options.pixelFilter = PixelFilter{SensorDesc::Filter::Gaussian, 0};
+    EXPECT_EQ(test::errorOf([&] { renderer.render(options); }),
+              "render: pixel filter width 0 is not in (0, 64]");
+    options.pixelFilter.reset();
     options.bsdfs = {1};
     EXPECT_EQ(test::errorOf([&] { renderer.render(options); }),
               "render: bsdf 1 is not one of the scene's 1");

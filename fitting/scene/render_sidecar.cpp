@@ -26,11 +26,6 @@ std::string shown(const nlohmann::json& value) {
     return text.size() <= 60 ? text : text.substr(0, 57) + "...";
 }
 
-// What the film's filter takes as its width: 0 for the box, whose sidecar names none.
-double filterWidth(const SensorDesc& film) {
-    return pixelFilterName(film.filter).width != nullptr ? film.filterWidth : 0;
-}
-
 std::string filterWords(SensorDesc::Filter filter, double width) {
     const PixelFilterName& f = pixelFilterName(filter);
     if (f.width == nullptr) return "a box pixel filter";
@@ -54,7 +49,7 @@ bool sameDepth(int a, int b, bool directExact) {
 nlohmann::json pixelFilterJson(const SensorDesc& film) {
     const PixelFilterName& f = pixelFilterName(film.filter);
     nlohmann::json filter = {{"type", f.type}};
-    if (f.width != nullptr) filter[f.width] = filterWidth(film);
+    if (f.width != nullptr) filter[f.width] = pixelFilterOf(film).width;
     return filter;
 }
 
@@ -123,7 +118,7 @@ RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int 
                             "{{\"type\": \"tent\", \"radius\": pixels > 0}})",
                             shown(f)));
         const double w = known->width != nullptr ? width.get<double>() : 0.0;
-        const double filmWidth = filterWidth(film);
+        const double filmWidth = pixelFilterOf(film).width;  // 0: the box, whose sidecar names none
         if (known->filter != film.filter || std::abs(w - filmWidth) > 1e-6 * filmWidth)
             throw misstated(filterWords(known->filter, w),
                             filterWords(film.filter, filmWidth) +
