@@ -21,6 +21,7 @@
 #include "observation.h"
 #include "path_set.h"
 #include "phong_brdf.h"
+#include "scene.h"
 
 namespace phongfit {
 
@@ -194,9 +195,9 @@ struct EdgeCheck {
     // |image - render| over their noise, the median over those whose centre sees a fitted material
     double medianDeviation = 0;
     double misfit = 0;  // the sum of the squared deviations
-    // Rendered with another of the pixel filters (kPixelFilters, at its default width) whose
-    // misfit is far below the scene's filter's: its name ("gaussian stddev 0.5"), and misfit.
-    std::string betterFilter;
+    // Rendered with another pixel filter, or width, whose misfit is far below the scene's filter's:
+    // that filter (edge_agreement.h), and its misfit.
+    std::optional<PixelFilter> betterFilter;
     double betterMisfit = 0;
     bool disagrees = false;
 };

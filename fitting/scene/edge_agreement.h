@@ -29,13 +29,18 @@ inline constexpr double kEdgeDisagreement = 4;
 inline constexpr double kEdgeTolerance = 0.02;
 // Another pixel filter fits the edges better when its misfit (the sum of squared deviations) is
 // below this share of the scene filter's, and below it by kFilterEvidence: as a likelihood ratio,
-// 5 standard deviations.
+// 5 standard deviations. A filter's width other than its default is named only when it fits
+// better than the default by kFilterEvidence too.
 inline constexpr double kFilterPreference = 0.5;
 inline constexpr double kFilterEvidence = 25;
+// The widths searched, from the default's quotient by this to its product with it; searched
+// where another default filter fits better, or the median deviation passes kWidthSearch (0.67
+// where image and render agree; at most 0.75 on the recovery matrix and the drawn set).
+inline constexpr double kWidthRange = 4;
+inline constexpr double kWidthSearch = 1.5;
 
-// A filter at its default width as EdgeCheck::betterFilter names it: "box", "gaussian stddev 0.5",
-// "tent radius 1".
-std::string pixelFilterLabel(const PixelFilterName& f);
+// A filter as EdgeCheck::betterFilter is printed: "box", "gaussian stddev 0.5", "tent radius 1.08".
+std::string pixelFilterLabel(const PixelFilter& f);
 
 // The pixels of a `width` x `height` film (row-major, Renderer::bsdfSeen's `seen` per pixel)
 // whose centre sees another bsdf, or nothing, than a 4-neighbour's, one of the two a `fitted` one.
@@ -45,8 +50,10 @@ std::vector<std::uint32_t> edgePixels(const std::vector<int>& seen, int width, i
 // View `v`'s used edge pixels (SceneView::edges), up to kMostEdgePixels, rendered anew at
 // `fitted` (per slot) times `exposure` with independent samples, against its image, whose noise is
 // modelled as `imageSpp` independent samples (0: none); and rendered so with each other pixel
-// filter at its default width. The image disagrees with the scene where its median deviation
-// passes kEdgeDisagreement, or another filter fits the edges better (kFilterPreference).
+// filter at its default width, and where one of them fits better (or the median deviation passes
+// kWidthSearch), with the widths of each (kWidthRange) to the one that fits best. The image
+// disagrees with the scene where its median deviation passes kEdgeDisagreement, or another filter
+// fits the edges better (kFilterPreference).
 EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fitted,
                         double exposure, int imageSpp, std::uint64_t seed, int threads);
 

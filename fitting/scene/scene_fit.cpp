@@ -108,14 +108,14 @@ void observe(SceneView& v, const Image& image, const SceneFitInputs& in,
 
 SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
                    const std::vector<std::uint8_t>* mask,
-                   const std::optional<PixelFilterName>& edgeFilter) {
+                   const std::optional<PixelFilter>& edgeFilter) {
     SceneView v;
     v.scenePath = spec.scenePath;
     v.imagePath = spec.imagePath;
     Scene scene = loadScene(v.scenePath, in.defines);
     if (edgeFilter && !scene.sensor.filterNamed) {
         scene.sensor.filter = edgeFilter->filter;
-        scene.sensor.filterWidth = edgeFilter->defaultWidth;
+        scene.sensor.filterWidth = edgeFilter->width;
         v.filterFromEdges = true;
     }
     v.fittedBsdfs = fittedBsdfs(scene, v.scenePath, in.materials);
@@ -249,17 +249,9 @@ std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow&
                                            const SceneRecording& recording,
                                            const std::vector<std::uint32_t>& pixels,
                                            const std::vector<PhongMaterial>& theta) {
-    RenderOptions options;
+    RenderOptions options = renderOptionsAt(v, theta, recording.threads);
     options.spp = spp;
     options.pixelSampler = v.renderedAs.pixelSampler;
-    options.sampler = v.renderedAs.sampler;
-    options.mis = v.renderedAs.mis;
-    options.threads = recording.threads;
-    options.maxDepth = v.maxDepth;
-    options.quiet = true;
-    const std::size_t fitted = std::min(theta.size(), v.fittedBsdfs.size());
-    options.bsdfs.assign(v.fittedBsdfs.begin(), v.fittedBsdfs.begin() + std::ptrdiff_t(fitted));
-    options.bsdfParams.assign(theta.begin(), theta.begin() + std::ptrdiff_t(fitted));
     std::vector<Eigen::Matrix3d> covariance;
     const auto width = std::uint32_t(window.width);
     for (std::uint32_t p : pixels) {
@@ -311,20 +303,31 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
     return problem;
 }
 
-std::vector<std::optional<PixelFilterName>> edgeFilters(const SceneFitProblem& problem,
-                                                        const FitResult& result) {
-    std::vector<std::optional<PixelFilterName>> filters(problem.views.size());
+std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& problem,
+                                                    const FitResult& result) {
+    std::vector<std::optional<PixelFilter>> filters(problem.views.size());
     bool any = false;
     for (std::size_t k = 0; k < problem.views.size() && k < result.edgeChecks.size(); ++k) {
         const SceneView& v = problem.views[k];
         if (v.filterFromEdges || !filterAssumed(v.renderer->scene().sensor, v.renderedAs)) continue;
-        for (const PixelFilterName& f : kPixelFilters)
-            if (pixelFilterLabel(f) == result.edgeChecks[k].betterFilter) {
-                filters[k] = f;
-                any = true;
-            }
+        filters[k] = result.edgeChecks[k].betterFilter;
+        any = any || filters[k].has_value();
     }
-    return any ? filters : std::vector<std::optional<PixelFilterName>>{};
+    return any ? filters : std::vector<std::optional<PixelFilter>>{};
+}
+
+RenderOptions renderOptionsAt(const SceneView& v, const std::vector<PhongMaterial>& theta,
+                              int threads) {
+    RenderOptions options;
+    options.sampler = v.renderedAs.sampler;
+    options.mis = v.renderedAs.mis;
+    options.threads = threads;
+    options.maxDepth = v.maxDepth;
+    options.quiet = true;
+    const std::size_t fitted = std::min(theta.size(), v.fittedBsdfs.size());
+    options.bsdfs.assign(v.fittedBsdfs.begin(), v.fittedBsdfs.begin() + std::ptrdiff_t(fitted));
+    options.bsdfParams.assign(theta.begin(), theta.begin() + std::ptrdiff_t(fitted));
+    return options;
 }
 
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
@@ -485,7 +488,7 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
             {"pixels_compared", e.pixels},
             {"median_deviation", e.medianDeviation},
             {"misfit", e.misfit},
-            {"better_pixel_filter", e.betterFilter},
+            {"better_pixel_filter", e.betterFilter ? pixelFilterLabel(*e.betterFilter) : ""},
             {"better_misfit", e.betterMisfit},
             {"agree",
              e.pixels < kLeastEdgePixels ? nlohmann::json() : nlohmann::json(!e.disagrees)}};

@@ -38,7 +38,7 @@ struct SceneFitInputs {
     std::optional<double> n;
     // Per view, or empty: the pixel filter a film that names none takes instead of phongfit's box,
     // where a fit found the image's edges to show it (edgeFilters).
-    std::vector<std::optional<PixelFilterName>> edgeFilters;
+    std::vector<std::optional<PixelFilter>> edgeFilters;
 };
 
 // One view, read and checked.
@@ -103,15 +103,20 @@ struct SceneRecording {
 // Reads and checks every input. Throws Error naming the file and what is allowed.
 SceneFitProblem loadSceneFit(const SceneFitInputs& inputs);
 
-// The rounds: records each view at the current estimate and fits (fitMaterials).
 // Per view, the filter its image's edges fit far better (FitResult::edgeChecks) where its film
 // names none and no sidecar says which made the image (filterAssumed), for
 // SceneFitInputs::edgeFilters; empty where no view has one. A fit of a Mitsuba image whose scene
 // leaves the filter to the renderer's default (Mitsuba's Gaussian, phongfit's box) is then run
 // again with the image's.
-std::vector<std::optional<PixelFilterName>> edgeFilters(const SceneFitProblem& problem,
-                                                        const FitResult& result);
+std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& problem,
+                                                    const FitResult& result);
 
+// View `v` rendered as its image was (sampler, MIS, the depth recorded) with its fitted materials
+// at `theta` (per slot): the options the fit's own renders of pixels start from.
+RenderOptions renderOptionsAt(const SceneView& v, const std::vector<PhongMaterial>& theta,
+                              int threads);
+
+// The rounds: records each view at the current estimate and fits (fitMaterials).
 FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recording,
                    const FitOptions& options);
 

@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "comparison_image.h"
+#include "edge_agreement.h"
 #include "path_growth.h"
 
 namespace phongfit {
@@ -114,14 +115,14 @@ void printSceneWarnings(const SceneFitProblem& problem) {
 }
 
 void printEdgeFilters(const SceneFitProblem& problem, const FitResult& result,
-                      const std::vector<std::optional<PixelFilterName>>& filters) {
+                      const std::vector<std::optional<PixelFilter>>& filters) {
     for (std::size_t k = 0; k < filters.size() && k < result.edgeChecks.size(); ++k)
         if (filters[k])
             fmt::print(
                 "{}: its edges, rendered anew at the estimate, fit a {} pixel filter far better "
                 "than phongfit's box (squared deviations {:.4g} against {:.4g}), and neither the "
                 "film nor a sidecar names one: fitted again with it\n",
-                problem.views[k].imagePath, result.edgeChecks[k].betterFilter,
+                problem.views[k].imagePath, pixelFilterLabel(*filters[k]),
                 result.edgeChecks[k].betterMisfit, result.edgeChecks[k].misfit);
 }
 
@@ -132,13 +133,14 @@ void printEdgeWarning(const SceneView& v, const EdgeCheck& e) {
     if (!e.disagrees) return;
     const SensorDesc& film = v.renderer->scene().sensor;
     const std::string stated = pixelFilterJson(film).dump();
-    if (!e.betterFilter.empty())
+    if (e.betterFilter)
         fmt::print(
             "warning: {} disagrees with {} where its edges cross pixels: rendered anew at this "
             "estimate with a {} pixel filter, {} edge pixels fit the image far better than with "
             "the scene's {} (squared deviations {:.4g} against {:.4g}): the estimate is likely "
             "wrong; name the image's filter in the film's <rfilter>\n",
-            v.imagePath, v.scenePath, e.betterFilter, e.pixels, stated, e.betterMisfit, e.misfit);
+            v.imagePath, v.scenePath, pixelFilterLabel(*e.betterFilter), e.pixels, stated,
+            e.betterMisfit, e.misfit);
     else
         fmt::print(
             "warning: {} disagrees with {} where its edges cross pixels: rendered anew at this "

@@ -17,7 +17,7 @@ void printSceneWarnings(const SceneFitProblem& problem);
 // The views whose film names no filter and whose image's edges showed another (edgeFilters'
 // `filters`): the fit runs again with it.
 void printEdgeFilters(const SceneFitProblem& problem, const FitResult& result,
-                      const std::vector<std::optional<PixelFilterName>>& filters);
+                      const std::vector<std::optional<PixelFilter>>& filters);
 
 // One line per round on stderr, naming the materials: rmse, iterations, time, memory, values.
 void printRound(const FitRound& round, const SceneFitProblem& problem, bool fitExposure);

@@ -4,6 +4,7 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfOutputFile.h>
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -53,6 +54,15 @@ protected:
         text.replace(text.find(box), box.size(), filter);
         std::ofstream(path(name)) << text;
         return path(name);
+    }
+    // `fit` of `image` through `scene` into `out`, at its defaults: what it prints, and fit.json.
+    static std::pair<std::string, nlohmann::json> fitWithEdges(const std::string& scene,
+                                                               const std::string& image,
+                                                               const std::string& out) {
+        const auto r =
+            run({"fit", "--view", scene + ":" + image, "--material", "sphere", "-o", path(out)});
+        EXPECT_EQ(r.exitCode, 0) << r.err;
+        return {r.out, nlohmann::json::parse(std::ifstream(path(out + "/fit.json")))};
     }
     static test::ProcessResult run(std::vector<std::string> args) {
         args.insert(args.begin(), PHONGFIT_EXE);
@@ -442,10 +452,7 @@ TEST_F(FitCommand, AnImageWhoseEdgesShowAnotherPixelFilterIsNotConverged) {
     ASSERT_EQ(run({"render", gaussian, "-o", image, "--spp", "16", "--quiet"}).exitCode, 0);
     fs::remove(image + ".json");
     const auto fit = [&](const std::string& scene, const std::string& out) {
-        const auto r =
-            run({"fit", "--view", scene + ":" + image, "--material", "sphere", "-o", path(out)});
-        EXPECT_EQ(r.exitCode, 0) << r.err;
-        return std::pair{r.out, nlohmann::json::parse(std::ifstream(path(out + "/fit.json")))};
+        return fitWithEdges(scene, image, out);
     };
 
     const auto [out, report] = fit(kSphere, "edges_box");
@@ -485,6 +492,42 @@ TEST_F(FitCommand, AnImageWhoseEdgesShowAnotherPixelFilterIsNotConverged) {
     EXPECT_EQ(unnamed["views"][0]["edges"]["agree"], true);
     EXPECT_EQ(unnamed["materials"], stated["materials"]);
     EXPECT_GT(unnamed["time_s"].get<double>(), stated["time_s"].get<double>());
+}
+
+// An image filtered at a width no renderer defaults to, read through a film that names no filter:
+// the edges name a filter of its spread (as standard deviation: a tent's radius over sqrt(6); on
+// this 40x40 film they cannot tell a tent from a Gaussian of the same spread), and the fit runs
+// again with it, to the estimate of a film that states it.
+TEST_F(FitCommand, AFilmThatNamesNoFilterTakesTheWidthTheEdgesShow) {
+    const std::string wide = sceneWithFilter(
+        "wide_tent.xml", R"(<rfilter type="tent"><float name="radius" value="1.8"/></rfilter>)");
+    const std::string image = path("wide_tent.exr");
+    ASSERT_EQ(run({"render", wide, "-o", image, "--spp", "256", "--quiet"}).exitCode, 0);
+    fs::remove(image + ".json");
+    const auto fit = [&](const std::string& scene, const std::string& out) {
+        return fitWithEdges(scene, image, out);
+    };
+    const auto [out, report] = fit(sceneWithFilter("unnamed_wide.xml", ""), "wide_unnamed");
+    const nlohmann::json& filter = report["views"][0]["pixel_filter"];
+    EXPECT_EQ(filter["from"], "edges") << out;
+    const bool tent = filter["type"] == "tent";
+    ASSERT_TRUE(tent || filter["type"] == "gaussian") << out;
+    const char* widthName = tent ? "radius" : "stddev";
+    const double width = filter[widthName].get<double>();
+    EXPECT_NEAR(tent ? width / std::sqrt(6.0) : width, 1.8 / std::sqrt(6.0), 0.04) << out;
+    EXPECT_NE(out.find(fmt::format("{}: its edges, rendered anew at the estimate, fit a {} {} {:g} "
+                                   "pixel filter far better than phongfit's box",
+                                   image, filter["type"].get<std::string>(), widthName, width)),
+              std::string::npos)
+        << out;
+    EXPECT_EQ(report["views"][0]["edges"]["agree"], true);
+    const auto [outFound, found] =
+        fit(sceneWithFilter(
+                "found_wide.xml",
+                fmt::format(R"(<rfilter type="{}"><float name="{}" value="{:g}"/></rfilter>)",
+                            filter["type"].get<std::string>(), widthName, width)),
+            "wide_found");
+    EXPECT_EQ(report["materials"], found["materials"]) << outFound;
 }
 
 TEST_F(FitCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
