@@ -25,6 +25,39 @@ double median(std::vector<double> values) {
     return *mid;
 }
 
+// The image's largest difference from a 4-neighbour in the film, over the channels: how much a
+// pixel filter's spread moves the pixel's value.
+double contrast(const Observation& o, std::uint32_t p) {
+    const int x = int(p % std::uint32_t(o.width)), y = int(p / std::uint32_t(o.width));
+    double most = 0;
+    const auto against = [&](int qx, int qy) {
+        if (qx < 0 || qy < 0 || qx >= o.width || qy >= o.height) return;
+        const std::size_t q = std::size_t(qy) * std::size_t(o.width) + std::size_t(qx);
+        for (std::size_t c = 0; c < 3; ++c)
+            most =
+                std::max(most, std::abs(double(o.rgb[3 * std::size_t(p) + c]) - o.rgb[3 * q + c]));
+    };
+    against(x - 1, y), against(x + 1, y), against(x, y - 1), against(x, y + 1);
+    return most;
+}
+
+// Up to `most` of `pixels`: the higher-contrast half of them, evenly spread, in the order of
+// `pixels`.
+std::vector<std::uint32_t> highContrast(const Observation& o, std::vector<std::uint32_t> pixels,
+                                        std::size_t most) {
+    if (pixels.size() <= most) return pixels;
+    std::vector<std::pair<double, std::uint32_t>> ranked;
+    for (std::uint32_t p : pixels) ranked.emplace_back(-contrast(o, p), p);
+    const std::size_t half = std::max(most, ranked.size() / 2);
+    std::nth_element(ranked.begin(), ranked.begin() + std::ptrdiff_t(half), ranked.end());
+    std::vector<std::uint32_t> high;
+    for (std::size_t k = 0; k < half; ++k) high.push_back(ranked[k].second);
+    std::sort(high.begin(), high.end());
+    pixels.clear();
+    for (std::size_t k = 0; k < most; ++k) pixels.push_back(high[k * high.size() / most]);
+    return pixels;
+}
+
 // A chosen pixel, over the sum of its channels: the render and one sample's standard deviation
 // there (the channels' added, as if they moved as one).
 struct Rendered {
@@ -138,9 +171,7 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
     std::vector<std::uint32_t> used;
     for (std::uint32_t p : v.edges)
         if (o.valid[p]) used.push_back(p);
-    const std::size_t count = std::min(used.size(), kMostEdgePixels);
-    std::vector<std::uint32_t> chosen;
-    for (std::size_t k = 0; k < count; ++k) chosen.push_back(used[k * used.size() / count]);
+    std::vector<std::uint32_t> chosen = highContrast(o, used, kMostEdgePixels);
     EdgeCheck check;
     if (chosen.size() < kLeastEdgePixels) return check;
     std::vector<double> image;

@@ -15,7 +15,9 @@
 
 namespace phongfit {
 
-// At most this many edge pixels are rendered anew, evenly spread over a view's edges.
+// At most this many edge pixels are rendered anew, evenly spread over the higher-contrast half of
+// a view's edges (a filter moves a pixel by its contrast with its neighbours: the sphere against
+// the Cornell box's walls is mostly of low contrast).
 inline constexpr std::size_t kMostEdgePixels = 64;
 // A verdict needs this many edge pixels with light in the image or the render.
 inline constexpr std::size_t kLeastEdgePixels = 8;
