@@ -119,6 +119,8 @@ TEST_F(EdgeAgreementTest, ACameraThatIsNotTheImagesDisagrees) {
     const EdgeCheck e = check(box, moved);
     EXPECT_TRUE(e.disagrees);
     EXPECT_GT(e.medianDeviation, kEdgeDisagreement);
+    // No filter fits it: a Gaussian of stddev 1.99 was named (misfit 4791 against 37244).
+    EXPECT_FALSE(e.betterFilter);
 }
 
 // The Cornell box (walls, indirect light, an area light) at its own filter: edges against the

@@ -198,12 +198,15 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
     if (check.pixels < kLeastEdgePixels) return check;
     // The median over the pixels whose centre sees a fitted material: outside, the background's
     // own pixels (an environment another renderer interpolates otherwise) are no part of the fit.
-    std::vector<double> inside;
-    for (std::size_t k = 0; k < chosen.size(); ++k)
-        if (stated[k] >= 0 && v.direct[chosen[k]]) inside.push_back(stated[k]);
-    check.medianDeviation = inside.empty() ? 0.0 : median(inside);
-    check.disagrees =
-        inside.size() * 2 >= kLeastEdgePixels && check.medianDeviation > kEdgeDisagreement;
+    const auto insideMedian = [&](const std::vector<double>& deviations) {
+        std::vector<double> inside;
+        for (std::size_t k = 0; k < chosen.size(); ++k)
+            if (deviations[k] >= 0 && v.direct[chosen[k]]) inside.push_back(deviations[k]);
+        return std::pair{inside.size(), inside.empty() ? 0.0 : median(inside)};
+    };
+    const auto [inside, statedMedian] = insideMedian(stated);
+    check.medianDeviation = statedMedian;
+    check.disagrees = inside * 2 >= kLeastEdgePixels && check.medianDeviation > kEdgeDisagreement;
 
     // The other filters at their default widths; where one fits better, or the scene's own leaves
     // edge pixels too far off, each kind at its best width too. A filter whose edges leave too few
@@ -238,7 +241,11 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
         if (misfit < bestDefault - kFilterEvidence && misfit < best.second)
             best = {widened, misfit};
     }
-    if (!better(best.second)) return check;
+    // A filter is the image's only where its edges agree as an image's own do: none fits edges
+    // that a camera or shapes other than the image's moved (the widest Gaussian searched would
+    // fit them "better").
+    if (!better(best.second) || insideMedian(deviationsWith(best.first)).second > kWidthSearch)
+        return check;
     check.betterFilter = best.first;
     check.betterMisfit = best.second;
     check.disagrees = true;

@@ -37,7 +37,8 @@ inline constexpr double kFilterPreference = 0.5;
 inline constexpr double kFilterEvidence = 25;
 // The widths searched, from the default's quotient by this to its product with it; searched
 // where another default filter fits better, or the median deviation passes kWidthSearch (0.67
-// where image and render agree; at most 0.75 on the recovery matrix and the drawn set).
+// where image and render agree; at most 0.73 on the recovery matrix and the drawn set). A filter
+// is named only where its own median deviation is within kWidthSearch.
 inline constexpr double kWidthRange = 4;
 inline constexpr double kWidthSearch = 1.5;
 
