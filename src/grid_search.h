@@ -1,5 +1,5 @@
-// Minimising a function of one variable that may have several local minima: the best point of a
-// grid, then golden-section search between its neighbours.
+// Minimising a function of one variable: golden-section search where it has one minimum; where it
+// may have several, the best point of a grid, then golden-section search between its neighbours.
 #pragma once
 
 #include <algorithm>
@@ -7,18 +7,11 @@
 
 namespace phongfit {
 
-// The x in [lo, hi] where f is least, to within `tolerance`: f on lo, lo + step, ..., hi, then
-// golden-section search in [best - step, best + step]. Finds the global minimum when the grid is
-// fine enough that no other basin is deeper between grid points.
+// The x in [a, b] where f is least, to within `tolerance`, by golden-section search: f falls,
+// then rises, over [a, b].
 template <typename F>
-double gridThenGoldenMinimum(F&& f, double lo, double hi, double step, double tolerance) {
-    double best = lo, bestValue = std::numeric_limits<double>::infinity();
-    for (double x = lo; x <= hi + 1e-9 * step; x += step) {
-        const double value = f(x);
-        if (value < bestValue) bestValue = value, best = x;
-    }
+double goldenSectionMinimum(F&& f, double a, double b, double tolerance) {
     constexpr double kGolden = 0.6180339887498949;
-    double a = std::max(best - step, lo), b = std::min(best + step, hi);
     double c = b - kGolden * (b - a), d = a + kGolden * (b - a);
     double fc = f(c), fd = f(d);
     while (b - a > tolerance) {
@@ -31,6 +24,19 @@ double gridThenGoldenMinimum(F&& f, double lo, double hi, double step, double to
         }
     }
     return 0.5 * (a + b);
+}
+
+// The x in [lo, hi] where f is least, to within `tolerance`: f on lo, lo + step, ..., hi, then
+// golden-section search in [best - step, best + step]. Finds the global minimum when the grid is
+// fine enough that no other basin is deeper between grid points.
+template <typename F>
+double gridThenGoldenMinimum(F&& f, double lo, double hi, double step, double tolerance) {
+    double best = lo, bestValue = std::numeric_limits<double>::infinity();
+    for (double x = lo; x <= hi + 1e-9 * step; x += step) {
+        const double value = f(x);
+        if (value < bestValue) bestValue = value, best = x;
+    }
+    return goldenSectionMinimum(f, std::max(best - step, lo), std::min(best + step, hi), tolerance);
 }
 
 }  // namespace phongfit

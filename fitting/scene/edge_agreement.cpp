@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "film_window.h"
+#include "grid_search.h"
 
 namespace phongfit {
 
@@ -119,22 +120,10 @@ std::pair<std::size_t, double> litMisfit(const std::vector<double>& deviations) 
 // 2%, rounded to 3 digits as the label prints it.
 template <class Misfit>
 double bestWidth(double defaultWidth, const Misfit& misfit) {
-    const double golden = (std::sqrt(5.0) - 1) / 2;
-    double a = std::log(defaultWidth / kWidthRange), b = std::log(defaultWidth * kWidthRange);
-    double c = b - golden * (b - a), d = a + golden * (b - a);
-    double fc = misfit(std::exp(c)), fd = misfit(std::exp(d));
-    while (b - a > 0.02) {
-        if (fc < fd) {
-            b = d, d = c, fd = fc;
-            c = b - golden * (b - a);
-            fc = misfit(std::exp(c));
-        } else {
-            a = c, c = d, fc = fd;
-            d = a + golden * (b - a);
-            fd = misfit(std::exp(d));
-        }
-    }
-    return std::stod(fmt::format("{:.3g}", std::exp((a + b) / 2)));
+    const double logWidth = goldenSectionMinimum([&](double t) { return misfit(std::exp(t)); },
+                                                 std::log(defaultWidth / kWidthRange),
+                                                 std::log(defaultWidth * kWidthRange), 0.02);
+    return std::stod(fmt::format("{:.3g}", std::exp(logWidth)));
 }
 
 }  // namespace
