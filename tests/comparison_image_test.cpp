@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "error.h"
+#include "percentile.h"
 
 namespace phongfit {
 namespace {
@@ -20,6 +21,18 @@ ComparisonPanels fourPixels() {
         {Color3::Zero(), Color3::Zero(), Color3::Constant(1.5), Color3::Constant(0.0)}};
     panels.whitePercentile = 100;
     return panels;
+}
+
+// The value at rank p% of the sample's size, whatever its order: the white level here, the edge
+// check's median deviation (p = 50: the upper median of an even count).
+TEST(Percentile, IsTheValueAtItsRank) {
+    const std::vector<double> values = {5, 1, 4, 2, 3};
+    EXPECT_EQ(percentile(values, 0), 1);
+    EXPECT_EQ(percentile(values, 50), 3);
+    EXPECT_EQ(percentile(values, 99), 5);
+    EXPECT_EQ(percentile(values, 100), 5);
+    EXPECT_EQ(percentile({4, 1, 3, 2}, 50), 3);
+    EXPECT_EQ(percentile({}, 50), 0);
 }
 
 TEST(ComparisonImage, ColumnsShowObservedPredictedAndSignedError) {

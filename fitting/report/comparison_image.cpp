@@ -7,20 +7,12 @@
 
 #include "error.h"
 #include "image.h"
+#include "percentile.h"
 
 namespace phongfit {
 namespace {
 
 const cv::Vec3b kGrey(64, 64, 64);
-
-double percentile(std::vector<double> values, double p) {
-    if (values.empty()) return 0;
-    const auto at =
-        values.begin() + std::ptrdiff_t(std::min<double>(double(values.size() - 1),
-                                                         p / 100 * double(values.size())));
-    std::nth_element(values.begin(), at, values.end());
-    return *at;
-}
 
 }  // namespace
 

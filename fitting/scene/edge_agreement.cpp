@@ -10,6 +10,7 @@
 
 #include "film_window.h"
 #include "grid_search.h"
+#include "percentile.h"
 
 namespace phongfit {
 
@@ -19,12 +20,6 @@ namespace {
 // image's variance, which the deviations allow for), within what keeps the check a small part of
 // the fit.
 int renderSpp(int imageSpp) { return imageSpp > 0 ? std::clamp(imageSpp, 512, 4096) : 4096; }
-
-double median(std::vector<double> values) {
-    const auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
-    std::nth_element(values.begin(), mid, values.end());
-    return *mid;
-}
 
 // The image's largest difference from a 4-neighbour in the film, over the channels: how much a
 // pixel filter's spread moves the pixel's value.
@@ -191,7 +186,7 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
         std::vector<double> inside;
         for (std::size_t k = 0; k < chosen.size(); ++k)
             if (deviations[k] >= 0 && v.direct[chosen[k]]) inside.push_back(deviations[k]);
-        return std::pair{inside.size(), inside.empty() ? 0.0 : median(inside)};
+        return std::pair{inside.size(), percentile(inside, 50)};
     };
     const auto [inside, statedMedian] = insideMedian(stated);
     check.medianDeviation = statedMedian;
