@@ -199,6 +199,10 @@ struct EdgeCheck {
     // that filter (edge_agreement.h), and its misfit.
     std::optional<PixelFilter> betterFilter;
     double betterMisfit = 0;
+    // A filter of another kind that the edges fit about as well as betterFilter (within
+    // kFilterEvidence): of one spread, their shapes are not told apart there. And its misfit.
+    std::optional<PixelFilter> alikeFilter;
+    double alikeMisfit = 0;
     bool disagrees = false;
 };
 

@@ -121,6 +121,28 @@ double bestWidth(double defaultWidth, const Misfit& misfit) {
     return std::stod(fmt::format("{:.3g}", std::exp(logWidth)));
 }
 
+// Of the filters `tried` (the first `defaults` at their default widths), the one of another kind
+// than `best` that fits within kFilterEvidence of it, defaults first, then the least misfit. Where
+// `best` is at its default width, only a default: renderers filter at theirs.
+std::optional<std::pair<PixelFilter, double>> alikeFilter(
+    const std::vector<std::pair<PixelFilter, double>>& tried,
+    const std::pair<PixelFilter, double>& best, std::size_t defaults) {
+    const auto same = [](const PixelFilter& x, const PixelFilter& y) {
+        return x.filter == y.filter && x.width == y.width;
+    };
+    const bool bestDefault = std::any_of(tried.begin(), tried.begin() + std::ptrdiff_t(defaults),
+                                         [&](const auto& t) { return same(t.first, best.first); });
+    std::optional<std::pair<PixelFilter, double>> alike;
+    for (std::size_t k = 0; k < tried.size(); ++k) {
+        if (k == defaults && (alike || bestDefault)) break;
+        const auto& [filter, misfit] = tried[k];
+        if (filter.filter != best.first.filter && misfit < best.second + kFilterEvidence &&
+            (!alike || misfit < alike->second))
+            alike = tried[k];
+    }
+    return alike;
+}
+
 }  // namespace
 
 std::string pixelFilterLabel(const PixelFilter& f) {
@@ -215,6 +237,7 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
     // Renderers filter at their defaults: another width is named where it fits better than every
     // default by kFilterEvidence.
     const double bestDefault = best.second;
+    std::vector<std::pair<PixelFilter, double>> tried = defaults;
     for (const auto& candidate : defaults) {
         const PixelFilter& filter = candidate.first;
         if (pixelFilterName(filter.filter).width == nullptr) continue;
@@ -222,6 +245,7 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
                                       return misfitWith({filter.filter, w});
                                   })};
         const double misfit = misfitWith(widened);
+        tried.emplace_back(widened, misfit);
         if (misfit < bestDefault - kFilterEvidence && misfit < best.second)
             best = {widened, misfit};
     }
@@ -233,6 +257,10 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
     check.betterFilter = best.first;
     check.betterMisfit = best.second;
     check.disagrees = true;
+    // Another kind the edges fit as well: a default width first, as for the best.
+    const auto alike = alikeFilter(tried, best, defaults.size());
+    if (alike && insideMedian(deviationsWith(alike->first)).second <= kWidthSearch)
+        std::tie(check.alikeFilter, check.alikeMisfit) = *alike;
     return check;
 }
 

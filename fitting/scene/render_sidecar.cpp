@@ -46,11 +46,11 @@ bool sameDepth(int a, int b, bool directExact) {
 
 }  // namespace
 
-nlohmann::json pixelFilterJson(const SensorDesc& film) {
-    const PixelFilterName& f = pixelFilterName(film.filter);
-    nlohmann::json filter = {{"type", f.type}};
-    if (f.width != nullptr) filter[f.width] = pixelFilterOf(film).width;
-    return filter;
+nlohmann::json pixelFilterJson(const PixelFilter& filter) {
+    const PixelFilterName& f = pixelFilterName(filter.filter);
+    nlohmann::json out = {{"type", f.type}};
+    if (f.width != nullptr) out[f.width] = filter.width;
+    return out;
 }
 
 RenderedAs readRenderedAs(const std::string& imagePath, const Scene& scene, int maxDepth,
@@ -146,7 +146,7 @@ bool filterAssumed(const SensorDesc& film, const RenderedAs& as) {
 }
 
 nlohmann::json pixelFilterReport(const SensorDesc& film, const RenderedAs& as) {
-    nlohmann::json report = pixelFilterJson(film);
+    nlohmann::json report = pixelFilterJson(pixelFilterOf(film));
     report["from"] = as.filterKnown ? as.source : filterAssumed(film, as) ? "default" : "scene";
     return report;
 }

@@ -28,7 +28,7 @@ struct RenderedAs {
 
 // The film's pixel filter as the sidecar writes it: {"type": "box"}, {"type": "gaussian",
 // "stddev": pixels} or {"type": "tent", "radius": pixels}.
-nlohmann::json pixelFilterJson(const SensorDesc& film);
+nlohmann::json pixelFilterJson(const PixelFilter& filter);
 
 // The settings of the image at `imagePath` from its sidecar IMAGE.json where there is one, else
 // the scene's sampler and sampleCount. `scene` is the view's scene, `maxDepth` its depth in

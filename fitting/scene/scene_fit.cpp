@@ -303,19 +303,6 @@ SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
     return problem;
 }
 
-std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& problem,
-                                                    const FitResult& result) {
-    std::vector<std::optional<PixelFilter>> filters(problem.views.size());
-    bool any = false;
-    for (std::size_t k = 0; k < problem.views.size() && k < result.edgeChecks.size(); ++k) {
-        const SceneView& v = problem.views[k];
-        if (v.filterFromEdges || !filterAssumed(v.renderer->scene().sensor, v.renderedAs)) continue;
-        filters[k] = result.edgeChecks[k].betterFilter;
-        any = any || filters[k].has_value();
-    }
-    return any ? filters : std::vector<std::optional<PixelFilter>>{};
-}
-
 RenderOptions renderOptionsAt(const SceneView& v, const std::vector<PhongMaterial>& theta,
                               int threads) {
     RenderOptions options;
@@ -423,9 +410,16 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
 namespace {
 
 // What fit.json says of a view's pixel filter where its image's edges chose it.
-nlohmann::json edgeFilterReport(const SceneView& v) {
-    nlohmann::json report = pixelFilterJson(v.renderer->scene().sensor);
+nlohmann::json edgeFilterReport(const SceneFitProblem& problem, std::size_t k) {
+    nlohmann::json report =
+        pixelFilterJson(pixelFilterOf(problem.views[k].renderer->scene().sensor));
     report["from"] = "edges";
+    if (const auto& other = problem.otherFilterFit;
+        other && k < other->filters.size() && other->filters[k]) {
+        report["residual_rms"] = other->keptResidual;
+        report["also_fitted"] = pixelFilterJson(*other->filters[k]);
+        report["also_fitted"]["residual_rms"] = other->residual;
+    }
     return report;
 }
 
@@ -465,7 +459,8 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
         return std::any_of(problem.views.begin(), problem.views.end(), f);
     };
     report["area_lights"] = any(ringed) ? "rings" : any(emitting) ? "sampled" : "none";
-    for (const SceneView& v : problem.views) {
+    for (std::size_t k = 0; k < problem.views.size(); ++k) {
+        const SceneView& v = problem.views[k];
         report["views"].push_back(
             {{"scene", v.scenePath},
              {"image", v.imagePath},
@@ -478,7 +473,7 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
              {"pixels_non_finite", v.nonFinite},
              {"pixels_without_data", v.noData},
              {"pixel_filter", v.filterFromEdges
-                                  ? edgeFilterReport(v)
+                                  ? edgeFilterReport(problem, k)
                                   : pixelFilterReport(v.renderer->scene().sensor, v.renderedAs)},
              {"image_rendered_as", renderedAsJson(v, recording)}});
     }
@@ -490,6 +485,8 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
             {"misfit", e.misfit},
             {"better_pixel_filter", e.betterFilter ? pixelFilterLabel(*e.betterFilter) : ""},
             {"better_misfit", e.betterMisfit},
+            {"alike_pixel_filter", e.alikeFilter ? pixelFilterLabel(*e.alikeFilter) : ""},
+            {"alike_misfit", e.alikeMisfit},
             {"agree",
              e.pixels < kLeastEdgePixels ? nlohmann::json() : nlohmann::json(!e.disagrees)}};
     }

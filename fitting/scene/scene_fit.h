@@ -74,11 +74,20 @@ struct SceneView {
     bool filterFromEdges = false;
 };
 
+// Where the edges fitted filters of two kinds alike (alikeFilters), the fit not kept: per view its
+// filter where it took one from the edges; and the rms differences of both estimates, rendered
+// anew, from the images (imageResiduals).
+struct OtherFilterFit {
+    std::vector<std::optional<PixelFilter>> filters;
+    double residual = 0, keptResidual = 0;
+};
+
 struct SceneFitProblem {
     std::vector<SceneView> views;
     std::vector<std::string> materials;
     std::map<std::string, std::string> defines;
     std::vector<PhongMaterial> start;  // per slot
+    std::optional<OtherFilterFit> otherFilterFit;
 };
 
 // How each round records its paths.
@@ -102,14 +111,6 @@ struct SceneRecording {
 
 // Reads and checks every input. Throws Error naming the file and what is allowed.
 SceneFitProblem loadSceneFit(const SceneFitInputs& inputs);
-
-// Per view, the filter its image's edges fit far better (FitResult::edgeChecks) where its film
-// names none and no sidecar says which made the image (filterAssumed), for
-// SceneFitInputs::edgeFilters; empty where no view has one. A fit of a Mitsuba image whose scene
-// leaves the filter to the renderer's default (Mitsuba's Gaussian, phongfit's box) is then run
-// again with the image's.
-std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& problem,
-                                                    const FitResult& result);
 
 // View `v` rendered as its image was (sampler, MIS, the depth recorded) with its fitted materials
 // at `theta` (per slot): the options the fit's own renders of pixels start from.

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <chrono>
 #include <cmath>
 #include <optional>
 
@@ -15,6 +16,7 @@
 #include "comparison_image.h"
 #include "defines.h"
 #include "error.h"
+#include "filters_from_edges.h"
 #include "fit_printing.h"
 #include "interrupt.h"
 #include "scene_fit.h"
@@ -103,19 +105,48 @@ void runSceneFit(const FitCli& a) {
         options.onRound = [&](const FitRound& r) { printRound(r, problem, a.fitExposure); };
     FitResult result = fitScene(problem, recording, options);
     // A film that names no filter, whose image's edges show another than phongfit's box: fitted
-    // again with that one, unless interrupted or what is left of the time budget would not hold
-    // its first round (as long as the first fit's).
-    in.edgeFilters = edgeFilters(problem, result);
-    const bool timeLeft = options.timeBudget <= 0 ||
-                          (!result.rounds.empty() && options.timeBudget - result.timeSeconds >
-                                                         result.rounds.front().timeSeconds);
-    if (!in.edgeFilters.empty() && !result.interrupted && timeLeft) {
-        printEdgeFilters(problem, result, in.edgeFilters);
-        problem = loadSceneFit(in);
-        const double firstSeconds = result.timeSeconds;
-        if (options.timeBudget > 0) options.timeBudget -= firstSeconds;
-        result = fitScene(problem, recording, options);
-        result.timeSeconds += firstSeconds;
+    // again with that one; where they fit one of another kind as well, with that one too, keeping
+    // the fit that holds the images better. Unless interrupted or what is left of the time budget
+    // would not hold a first round (as long as the first fit's).
+    const double firstRound = result.rounds.empty() ? 0 : result.rounds.front().timeSeconds;
+    const auto room = [&] {
+        return !result.interrupted &&
+               (options.timeBudget <= 0 || options.timeBudget - result.timeSeconds > firstRound);
+    };
+    const auto fitWith = [&](const std::vector<std::optional<PixelFilter>>& filters) {
+        in.edgeFilters = filters;
+        std::pair<SceneFitProblem, FitResult> out;
+        out.first = loadSceneFit(in);
+        FitOptions o = options;
+        if (o.timeBudget > 0) o.timeBudget -= result.timeSeconds;
+        out.second = fitScene(out.first, recording, o);
+        out.second.timeSeconds += result.timeSeconds;
+        return out;
+    };
+    const auto named = edgeFilters(problem, result), alike = alikeFilters(problem, result);
+    if (!named.empty() && room()) {
+        printEdgeFilters(problem, result, named);
+        const std::vector<EdgeCheck> checks = result.edgeChecks;
+        std::tie(problem, result) = fitWith(named);
+        if (!alike.empty() && room()) {
+            printAlikeFilters(problem, checks, named, alike);
+            auto [otherProblem, other] = fitWith(alike);
+            const auto begin = std::chrono::steady_clock::now();
+            const ImageResiduals residuals =
+                imageResiduals(problem, result, otherProblem, other, recording);
+            const double seconds =
+                other.timeSeconds +
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+            printFilterChoice(problem, named, alike, residuals);
+            if (residuals.secondBetter) {
+                otherProblem.otherFilterFit = {named, residuals.first, residuals.second};
+                problem = std::move(otherProblem);
+                result = std::move(other);
+            } else {
+                problem.otherFilterFit = {alike, residuals.second, residuals.first};
+            }
+            result.timeSeconds = seconds;
+        }
     }
     writeSceneFit(problem, result, recording, a.compareSpp, a.output);
     printSceneFit(problem, result, a.grey, a.output);

@@ -126,13 +126,44 @@ void printEdgeFilters(const SceneFitProblem& problem, const FitResult& result,
                 result.edgeChecks[k].betterMisfit, result.edgeChecks[k].misfit);
 }
 
+void printAlikeFilters(const SceneFitProblem& problem, const std::vector<EdgeCheck>& checks,
+                       const std::vector<std::optional<PixelFilter>>& named,
+                       const std::vector<std::optional<PixelFilter>>& alike) {
+    for (std::size_t k = 0; k < alike.size() && k < checks.size(); ++k)
+        if (checks[k].alikeFilter && alike[k] && named[k])
+            fmt::print(
+                "{}: its edges fit a {} pixel filter as well as the {} (squared deviations {:.4g} "
+                "against {:.4g}): fitted with it too, the fit that holds the image better kept\n",
+                problem.views[k].imagePath, pixelFilterLabel(*alike[k]),
+                pixelFilterLabel(*named[k]), checks[k].alikeMisfit, checks[k].betterMisfit);
+}
+
+void printFilterChoice(const SceneFitProblem& problem,
+                       const std::vector<std::optional<PixelFilter>>& named,
+                       const std::vector<std::optional<PixelFilter>>& alike,
+                       const ImageResiduals& residuals) {
+    const bool alikeKept = residuals.secondBetter;
+    std::vector<std::string> labels;
+    for (std::size_t k = 0; k < named.size() && k < problem.views.size(); ++k)
+        if (const auto& kept = alikeKept ? alike[k] : named[k]; kept)
+            labels.push_back(
+                fmt::format("{} for {}", pixelFilterLabel(*kept), problem.views[k].imagePath));
+    const double kept = alikeKept ? residuals.second : residuals.first;
+    const double other = alikeKept ? residuals.first : residuals.second;
+    fmt::print(
+        "kept the fit with the {}: its estimate, rendered anew, differs from the images by {:.4g} "
+        "rms, the other's by {:.4g}{}\n",
+        fmt::join(labels, ", "), kept, other,
+        !alikeKept && other < kept ? " (within the renders' noise: the edges' choice kept)" : "");
+}
+
 namespace {
 
 // An image that disagrees with its scene where the scene's edges cross pixels (edge_agreement.h).
 void printEdgeWarning(const SceneView& v, const EdgeCheck& e) {
     if (!e.disagrees) return;
     const SensorDesc& film = v.renderer->scene().sensor;
-    const std::string stated = pixelFilterJson(film).dump();
+    const std::string stated = pixelFilterJson(pixelFilterOf(film)).dump();
     if (e.betterFilter)
         fmt::print(
             "warning: {} disagrees with {} where its edges cross pixels: rendered anew at this "

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "filters_from_edges.h"
 #include "fitter.h"
 #include "scene_fit.h"
 
@@ -18,6 +19,19 @@ void printSceneWarnings(const SceneFitProblem& problem);
 // `filters`): the fit runs again with it.
 void printEdgeFilters(const SceneFitProblem& problem, const FitResult& result,
                       const std::vector<std::optional<PixelFilter>>& filters);
+
+// The views whose edges, in the fit that named `named` (its `checks`), fit the `alike` filters as
+// well: the fit runs with those too.
+void printAlikeFilters(const SceneFitProblem& problem, const std::vector<EdgeCheck>& checks,
+                       const std::vector<std::optional<PixelFilter>>& named,
+                       const std::vector<std::optional<PixelFilter>>& alike);
+
+// Of the fits with edgeFilters' (`named`) and alikeFilters' (`alike`) filters, which was kept,
+// and how far each estimate, rendered anew, is from the images.
+void printFilterChoice(const SceneFitProblem& problem,
+                       const std::vector<std::optional<PixelFilter>>& named,
+                       const std::vector<std::optional<PixelFilter>>& alike,
+                       const ImageResiduals& residuals);
 
 // One line per round on stderr, naming the materials: rmse, iterations, time, memory, values.
 void printRound(const FitRound& round, const SceneFitProblem& problem, bool fitExposure);

@@ -71,7 +71,7 @@ void runRender(const RenderArgs& args) {
                               renderer.scene().sensor.pixelSampler))},
         {"mis", args.options.mis},
         {"max_depth", renderer.effectiveMaxDepth(args.options.maxDepth)},
-        {"pixel_filter", pixelFilterJson(renderer.scene().sensor)},
+        {"pixel_filter", pixelFilterJson(pixelFilterOf(renderer.scene().sensor))},
         {"threads", threads},
         {"width", result.width},
         {"height", result.height},

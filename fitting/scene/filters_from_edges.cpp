@@ -1,0 +1,87 @@
+#include "filters_from_edges.h"
+
+#include <cmath>
+
+#include "render_sidecar.h"
+
+namespace phongfit {
+
+std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& problem,
+                                                    const FitResult& result) {
+    std::vector<std::optional<PixelFilter>> filters(problem.views.size());
+    bool any = false;
+    for (std::size_t k = 0; k < problem.views.size() && k < result.edgeChecks.size(); ++k) {
+        const SceneView& v = problem.views[k];
+        if (v.filterFromEdges || !filterAssumed(v.renderer->scene().sensor, v.renderedAs)) continue;
+        filters[k] = result.edgeChecks[k].betterFilter;
+        any = any || filters[k].has_value();
+    }
+    return any ? filters : std::vector<std::optional<PixelFilter>>{};
+}
+
+std::vector<std::optional<PixelFilter>> alikeFilters(const SceneFitProblem& problem,
+                                                     const FitResult& result) {
+    std::vector<std::optional<PixelFilter>> filters = edgeFilters(problem, result);
+    bool any = false;
+    for (std::size_t k = 0; k < filters.size(); ++k)
+        if (const auto& alike = result.edgeChecks[k].alikeFilter; filters[k] && alike) {
+            filters[k] = alike;
+            any = true;
+        }
+    return any ? filters : std::vector<std::optional<PixelFilter>>{};
+}
+
+ImageResiduals imageResiduals(const SceneFitProblem& first, const FitResult& firstFit,
+                              const SceneFitProblem& second, const FitResult& secondFit,
+                              const SceneRecording& recording) {
+    // Per value, each fit's residual against two independent renders multiplied (the renders' noise
+    // out of its expectation, as the cross products of a round), and their difference.
+    double products[2] = {0, 0}, differences = 0, differenceSquares = 0;
+    std::size_t values = 0;
+    for (std::size_t k = 0; k < first.views.size() && k < second.views.size(); ++k) {
+        const Observation& o = first.views[k].observation;
+        std::vector<std::uint8_t> both(o.valid.size());
+        for (std::size_t p = 0; p < both.size(); ++p)
+            both[p] =
+                o.valid[p] && second.views[k].observation.valid[p] && first.views[k].direct[p];
+        const auto renderAt = [&](const SceneView& v, const FitResult& fit, std::uint64_t r) {
+            std::vector<PhongMaterial> theta;
+            for (const MaterialFit& m : fit.materials) theta.push_back(m.material());
+            RenderOptions options = renderOptionsAt(v, theta, recording.threads);
+            options.spp = kResidualSpp;
+            options.seed = recording.seed * 7919 + 1299709 + r;  // independent of the recordings
+            options.rendered = both;
+            const RenderResult rendered = v.renderer->render(options);
+            const double exposure = fit.exposure ? fit.exposure->value : 1.0;
+            std::vector<double> residual(rendered.rgb.size());
+            for (std::size_t i = 0; i < residual.size(); ++i)
+                residual[i] = o.rgb[i] - exposure * rendered.rgb[i];
+            return residual;
+        };
+        const std::vector<double> residuals[2][2] = {
+            {renderAt(first.views[k], firstFit, 0), renderAt(first.views[k], firstFit, 1)},
+            {renderAt(second.views[k], secondFit, 0), renderAt(second.views[k], secondFit, 1)}};
+        for (std::size_t i = 0; i < 3 * both.size(); ++i) {
+            if (!both[i / 3]) continue;
+            double product[2];
+            for (int f = 0; f < 2; ++f) {
+                product[f] = residuals[f][0][i] * residuals[f][1][i];
+                products[f] += product[f];
+            }
+            differences += product[0] - product[1];
+            differenceSquares += std::pow(product[0] - product[1], 2);
+            ++values;
+        }
+    }
+    ImageResiduals out;
+    if (values < 2) return out;
+    const double n = double(values), mean = differences / n;
+    out.first = std::sqrt(std::max(products[0] / n, 0.0));
+    out.second = std::sqrt(std::max(products[1] / n, 0.0));
+    out.secondBetter =
+        mean >
+        kResidualEvidence * std::sqrt(std::max(differenceSquares / n - mean * mean, 0.0) / (n - 1));
+    return out;
+}
+
+}  // namespace phongfit
