@@ -225,7 +225,9 @@ struct FitResult {
     // spent as a round recorded at a sharper lobe moved the estimate there, or the last round, a
     // probe, did not come back to the estimate reported: sharper_probe.h), "time budget"
     // (FitOptions::timeBudget), "memory" (FitOptions::memoryLimit), "interrupted", or (scene
-    // fits) "images disagree": converged, but an image disagrees with its scene (edgeChecks).
+    // fits) "images disagree": converged, but an image disagrees with its scene (edgeChecks), or
+    // "pixel filter unresolved": converged, but the fits with two filters an unnamed film's edges
+    // fit alike differ by more than their standard errors (holdBothFilters).
     std::string stopReason;
     // Last round, over all views: pixels that see a fitted material, and (instrumental variables)
     // the pixels within 2 of one, whose residuals enter the moments without depending on theta.

@@ -259,5 +259,34 @@ TEST_F(EdgeAgreementTest, ImageResidualsTellTheFilterThatMadeTheImage) {
     EXPECT_EQ(same.first, same.second);
 }
 
+// Two fits with filters the images leave open: the kept one's standard errors hold the other's
+// estimate, and it is not converged where that moved a parameter by more than its own.
+TEST(HoldBothFilters, RaisesTheStandardErrorsToHoldTheOtherEstimate) {
+    FitResult kept, other;
+    MaterialFit& m = kept.materials.emplace_back();
+    m.kd = Color3(0.5, 0.5, 0.5);
+    m.ks = Color3(0.3, 0.3, 0.3);
+    m.n = 300;
+    m.kdStd = m.ksStd = Color3(0.001, 0.001, 0.001);
+    m.nStd = 3;
+    m.logNStd = 0.01;
+    kept.converged = true;
+    kept.stopReason = "precision";
+    other.materials = kept.materials;
+    other.materials[0].n = 302;
+    FitResult within = kept;
+    holdBothFilters(within, other);
+    EXPECT_TRUE(within.converged);
+    EXPECT_NEAR(within.materials[0].nStd, std::sqrt(13.0), 1e-12);
+    EXPECT_EQ(within.materials[0].kdStd[0], 0.001);
+    EXPECT_NEAR(within.materials[0].logNStd, std::hypot(0.01, std::log(300.0 / 302)), 1e-15);
+    other.materials[0].ks[1] = 0.304;
+    holdBothFilters(kept, other);
+    EXPECT_FALSE(kept.converged);
+    EXPECT_EQ(kept.stopReason, "pixel filter unresolved");
+    EXPECT_NEAR(kept.materials[0].ksStd[1], std::hypot(0.001, 0.004), 1e-15);
+    EXPECT_EQ(kept.materials[0].ksStd[0], 0.001);
+}
+
 }  // namespace
 }  // namespace phongfit

@@ -1,6 +1,7 @@
 #include "filters_from_edges.h"
 
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 #include "render_sidecar.h"
 
@@ -40,10 +41,17 @@ ImageResiduals imageResiduals(const SceneFitProblem& first, const FitResult& fir
     std::size_t values = 0;
     for (std::size_t k = 0; k < first.views.size() && k < second.views.size(); ++k) {
         const Observation& o = first.views[k].observation;
+        // Inside the silhouettes, by the widest reach of the two filters: at a silhouette a
+        // pixel's value is the share of its footprint each side covers, which the edge check
+        // has weighed; inside, a highlight that varies over a pixel shows the filter's shape.
+        cv::Mat inside(o.height, o.width, CV_8U);
+        for (std::size_t p = 0; p < o.valid.size(); ++p) inside.data[p] = first.views[k].direct[p];
+        const int reach = std::max(filterReach(first.views[k].renderer->scene().sensor),
+                                   filterReach(second.views[k].renderer->scene().sensor));
+        cv::erode(inside, inside, cv::Mat::ones(2 * reach + 1, 2 * reach + 1, CV_8U));
         std::vector<std::uint8_t> both(o.valid.size());
         for (std::size_t p = 0; p < both.size(); ++p)
-            both[p] =
-                o.valid[p] && second.views[k].observation.valid[p] && first.views[k].direct[p];
+            both[p] = o.valid[p] && second.views[k].observation.valid[p] && inside.data[p];
         const auto renderAt = [&](const SceneView& v, const FitResult& fit, std::uint64_t r) {
             std::vector<PhongMaterial> theta;
             for (const MaterialFit& m : fit.materials) theta.push_back(m.material());
@@ -78,10 +86,35 @@ ImageResiduals imageResiduals(const SceneFitProblem& first, const FitResult& fir
     const double n = double(values), mean = differences / n;
     out.first = std::sqrt(std::max(products[0] / n, 0.0));
     out.second = std::sqrt(std::max(products[1] / n, 0.0));
-    out.secondBetter =
-        mean >
-        kResidualEvidence * std::sqrt(std::max(differenceSquares / n - mean * mean, 0.0) / (n - 1));
+    const double standardError =
+        std::sqrt(std::max(differenceSquares / n - mean * mean, 0.0) / (n - 1));
+    out.secondBetter = mean > kResidualEvidence * standardError;
+    out.firstBetter = -mean > kResidualEvidence * standardError;
     return out;
+}
+
+void holdBothFilters(FitResult& kept, const FitResult& other) {
+    bool moved = false;
+    const auto hold = [&moved](double& std, double difference) {
+        moved = moved || std::abs(difference) > std;
+        std = std::hypot(std, difference);
+    };
+    for (std::size_t s = 0; s < kept.materials.size() && s < other.materials.size(); ++s) {
+        MaterialFit& m = kept.materials[s];
+        const MaterialFit& o = other.materials[s];
+        for (int c = 0; c < 3; ++c) {
+            hold(m.kdStd[c], m.kd[c] - o.kd[c]);
+            hold(m.ksStd[c], m.ks[c] - o.ks[c]);
+        }
+        if (m.n > 0 && o.n > 0 && !m.isUnconstrained("n")) {
+            hold(m.nStd, m.n - o.n);
+            hold(m.logNStd, std::log(m.n / o.n));
+        }
+    }
+    if (kept.converged && moved) {
+        kept.converged = false;
+        kept.stopReason = "pixel filter unresolved";
+    }
 }
 
 }  // namespace phongfit

@@ -1,7 +1,7 @@
 // A film that names no pixel filter is fitted as phongfit's box; where the image's edges show
 // another filter, the fit runs again with it, and where they fit two kinds alike, with each,
-// keeping the one whose estimate renders closer to the images (docs/design/fitter.md, "A scene
-// that misstates its image").
+// keeping the one whose estimate renders closer to the images (docs/design/fitter.md, "Kinds of
+// one spread").
 #pragma once
 
 #include <optional>
@@ -31,18 +31,26 @@ std::vector<std::optional<PixelFilter>> alikeFilters(const SceneFitProblem& prob
 inline constexpr int kResidualSpp = 128;
 
 // The rms difference between the images and each fit's estimate rendered anew, over every view's
-// pixels that both fits use: the mean product of a pixel's differences from two independent
-// renders, whose noise is then out of it (kResidualSpp paths a pixel each), and not the fits' own
-// rmse, which holds their recordings' noise, less where a fit spent more paths. The second holds
-// the images better where its mean product is below the first's by kResidualEvidence standard
-// errors of their difference (over the pixels' channels, as independent).
+// pixels that both fits use inside the silhouettes by the wider filter's reach: the mean product of
+// a pixel's differences from two independent renders, whose noise is then out of it (kResidualSpp
+// paths a pixel each), and not the fits' own rmse, which holds their recordings' noise, less where
+// a fit spent more paths. The second holds the images better where its mean product is below the
+// first's by kResidualEvidence standard errors of their difference (over the pixels' channels, as
+// independent).
 inline constexpr double kResidualEvidence = 3;
 struct ImageResiduals {
     double first = 0, second = 0;
-    bool secondBetter = false;
+    bool firstBetter = false, secondBetter = false;
 };
 ImageResiduals imageResiduals(const SceneFitProblem& first, const FitResult& firstFit,
                               const SceneFitProblem& second, const FitResult& secondFit,
                               const SceneRecording& recording);
+
+// The images' edges give a filter's spread, not its shape or exact width, and the two filters
+// fitted need not include the image's (Tungsten's tent, sampled as one of radius 1.08, lies between
+// a tent of radius 1 and a Gaussian of stddev 0.5): the standard errors of `kept` are raised to
+// hold `other`'s estimate too, and a fit that had converged is not where the two differ by more
+// than its standard errors ("pixel filter unresolved").
+void holdBothFilters(FitResult& kept, const FitResult& other);
 
 }  // namespace phongfit

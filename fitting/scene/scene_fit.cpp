@@ -159,20 +159,6 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
     return v;
 }
 
-// How many pixels from its own a pixel's value takes samples: the Gaussian's 3 standard
-// deviations, the tent's radius, none for a box.
-int filterReach(const SensorDesc& film) {
-    switch (film.filter) {
-        case SensorDesc::Filter::Box:
-            return 0;
-        case SensorDesc::Filter::Gaussian:
-            return int(std::ceil(3 * film.filterWidth + 0.5));
-        case SensorDesc::Filter::Tent:
-            break;
-    }
-    return int(std::ceil(film.filterWidth + 0.5));
-}
-
 // Where every fitted material is seen directly somewhere, the pixels that see none of them through
 // their footprint are left out: what they show of the materials comes through other surfaces, a
 // few noisy bounces that pulled the estimate (docs/design/fitter.md, "Pixels that see the
@@ -272,6 +258,18 @@ std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow&
 }
 
 }  // namespace
+
+int filterReach(const SensorDesc& film) {
+    switch (film.filter) {
+        case SensorDesc::Filter::Box:
+            return 0;
+        case SensorDesc::Filter::Gaussian:
+            return int(std::ceil(3 * film.filterWidth + 0.5));
+        case SensorDesc::Filter::Tent:
+            break;
+    }
+    return int(std::ceil(film.filterWidth + 0.5));
+}
 
 SceneFitProblem loadSceneFit(const SceneFitInputs& inputs) {
     if (inputs.views.empty()) throw Error("the fit needs at least one --view SCENE.xml:IMAGE");

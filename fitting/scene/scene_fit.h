@@ -109,6 +109,10 @@ struct SceneRecording {
     int imageSpp = -1;
 };
 
+// How many pixels from its own a pixel's value takes samples: the Gaussian's 3 standard
+// deviations, the tent's radius, none for a box.
+int filterReach(const SensorDesc& film);
+
 // Reads and checks every input. Throws Error naming the file and what is allowed.
 SceneFitProblem loadSceneFit(const SceneFitInputs& inputs);
 

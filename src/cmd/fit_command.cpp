@@ -140,10 +140,12 @@ void runSceneFit(const FitCli& a) {
             printFilterChoice(problem, named, alike, residuals);
             if (residuals.secondBetter) {
                 otherProblem.otherFilterFit = {named, residuals.first, residuals.second};
+                holdBothFilters(other, result);
                 problem = std::move(otherProblem);
                 result = std::move(other);
             } else {
                 problem.otherFilterFit = {alike, residuals.second, residuals.first};
+                holdBothFilters(result, other);
             }
             result.timeSeconds = seconds;
         }

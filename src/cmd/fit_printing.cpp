@@ -22,6 +22,10 @@ std::string notConvergedBecause(const FitResult& result) {
     if (result.stopReason == "images disagree")
         return "the estimate settled, but the images disagree with their scenes where the "
                "scenes' edges cross pixels (see the warning above)";
+    if (result.stopReason == "pixel filter unresolved")
+        return "the film names no pixel filter, and the fits with the two its image's edges fit "
+               "alike (above) differ by more than their standard errors, which are raised to hold "
+               "both; name the image's filter in the film's <rfilter>";
     if (result.stopReason == "precision not met")
         return fmt::format(
             "the estimate stopped moving, but not every parameter is as precise as --precision "
@@ -154,7 +158,9 @@ void printFilterChoice(const SceneFitProblem& problem,
         "kept the fit with the {}: its estimate, rendered anew, differs from the images by {:.4g} "
         "rms, the other's by {:.4g}{}\n",
         fmt::join(labels, ", "), kept, other,
-        !alikeKept && other < kept ? " (within the renders' noise: the edges' choice kept)" : "");
+        residuals.firstBetter || residuals.secondBetter
+            ? ""
+            : " (within the renders' noise: the edges' choice kept)");
 }
 
 namespace {
