@@ -72,6 +72,32 @@ FitOptions fitOptions(const FitCli& a) {
     return o;
 }
 
+// Of the fits with the filters the edges named and those they fit alike, the one whose estimate
+// renders closer to the images, its standard errors holding the other's estimate
+// (filters_from_edges.h); `problem` and `result` hold the named one's and take the one kept.
+void keepCloserFit(SceneFitProblem& problem, FitResult& result, SceneFitProblem&& otherProblem,
+                   FitResult&& other, const std::vector<std::optional<PixelFilter>>& named,
+                   const std::vector<std::optional<PixelFilter>>& alike,
+                   const SceneRecording& recording) {
+    const auto begin = std::chrono::steady_clock::now();
+    const ImageResiduals residuals =
+        imageResiduals(problem, result, otherProblem, other, recording);
+    const double seconds =
+        other.timeSeconds +
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+    printFilterChoice(problem, named, alike, residuals);
+    if (residuals.secondBetter) {
+        otherProblem.otherFilterFit = {named, residuals.first, residuals.second};
+        holdBothFilters(other, result);
+        problem = std::move(otherProblem);
+        result = std::move(other);
+    } else {
+        problem.otherFilterFit = {alike, residuals.second, residuals.first};
+        holdBothFilters(result, other);
+    }
+    result.timeSeconds = seconds;
+}
+
 void runSceneFit(const FitCli& a) {
     SceneFitInputs in;
     in.defines = parseDefines(a.defines);
@@ -131,23 +157,14 @@ void runSceneFit(const FitCli& a) {
         if (!alike.empty() && room()) {
             printAlikeFilters(problem, checks, named, alike);
             auto [otherProblem, other] = fitWith(alike);
-            const auto begin = std::chrono::steady_clock::now();
-            const ImageResiduals residuals =
-                imageResiduals(problem, result, otherProblem, other, recording);
-            const double seconds =
-                other.timeSeconds +
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
-            printFilterChoice(problem, named, alike, residuals);
-            if (residuals.secondBetter) {
-                otherProblem.otherFilterFit = {named, residuals.first, residuals.second};
-                holdBothFilters(other, result);
-                problem = std::move(otherProblem);
-                result = std::move(other);
+            if (other.interrupted) {
+                fmt::print("interrupted: the fit with the edges' filter stands\n");
+                result.interrupted = true;
+                result.timeSeconds = other.timeSeconds;
             } else {
-                problem.otherFilterFit = {alike, residuals.second, residuals.first};
-                holdBothFilters(result, other);
+                keepCloserFit(problem, result, std::move(otherProblem), std::move(other), named,
+                              alike, recording);
             }
-            result.timeSeconds = seconds;
         }
     }
     writeSceneFit(problem, result, recording, a.compareSpp, a.output);
