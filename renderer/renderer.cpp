@@ -154,8 +154,7 @@ RenderResult Renderer::render(const RenderOptions& options) const {
             !(w > 0 && w <= kMaxFilterWidth))
             throw Error(
                 fmt::format("render: pixel filter width {} is not in (0, {}]", w, kMaxFilterWidth));
-        sensor.filter = options.pixelFilter->filter;
-        sensor.filterWidth = options.pixelFilter->width;
+        setPixelFilter(sensor, *options.pixelFilter);
     }
     TileLoop loop = tileLoop(integrator, sensor, window, options.pixelSampler, options.seed,
                              options.threads, spp);

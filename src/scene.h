@@ -124,6 +124,10 @@ struct PixelFilter {
 inline PixelFilter pixelFilterOf(const SensorDesc& film) {
     return {film.filter, pixelFilterName(film.filter).width != nullptr ? film.filterWidth : 0};
 }
+inline void setPixelFilter(SensorDesc& film, const PixelFilter& f) {
+    film.filter = f.filter;
+    film.filterWidth = f.width;
+}
 
 struct IntegratorDesc {
     std::string type = "path";  // "path" or "direct"

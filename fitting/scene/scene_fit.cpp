@@ -114,8 +114,7 @@ SceneView loadView(const SceneFitInputs::View& spec, const SceneFitInputs& in,
     v.imagePath = spec.imagePath;
     Scene scene = loadScene(v.scenePath, in.defines);
     if (edgeFilter && !scene.sensor.filterNamed) {
-        scene.sensor.filter = edgeFilter->filter;
-        scene.sensor.filterWidth = edgeFilter->width;
+        setPixelFilter(scene.sensor, *edgeFilter);
         v.filterFromEdges = true;
     }
     v.fittedBsdfs = fittedBsdfs(scene, v.scenePath, in.materials);
