@@ -3,6 +3,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "film_window.h"
 #include "render_sidecar.h"
 
 namespace phongfit {
@@ -52,33 +53,46 @@ ImageResiduals imageResiduals(const SceneFitProblem& first, const FitResult& fir
         std::vector<std::uint8_t> both(o.valid.size());
         for (std::size_t p = 0; p < both.size(); ++p)
             both[p] = o.valid[p] && second.views[k].observation.valid[p] && inside.data[p];
-        const auto renderAt = [&](const SceneView& v, const FitResult& fit, std::uint64_t r) {
-            std::vector<PhongMaterial> theta;
-            for (const MaterialFit& m : fit.materials) theta.push_back(m.material());
-            RenderOptions options = renderOptionsAt(v, theta, recording.threads);
-            options.spp = kResidualSpp;
-            options.seed = recording.seed * 7919 + 1299709 + r;  // independent of the recordings
-            options.rendered = both;
-            const RenderResult rendered = v.renderer->render(options);
-            const double exposure = fit.exposure ? fit.exposure->value : 1.0;
-            std::vector<double> residual(rendered.rgb.size());
-            for (std::size_t i = 0; i < residual.size(); ++i)
-                residual[i] = o.rgb[i] - exposure * rendered.rgb[i];
-            return residual;
-        };
-        const std::vector<double> residuals[2][2] = {
-            {renderAt(first.views[k], firstFit, 0), renderAt(first.views[k], firstFit, 1)},
-            {renderAt(second.views[k], secondFit, 0), renderAt(second.views[k], secondFit, 1)}};
-        for (std::size_t i = 0; i < 3 * both.size(); ++i) {
-            if (!both[i / 3]) continue;
-            double product[2];
-            for (int f = 0; f < 2; ++f) {
-                product[f] = residuals[f][0][i] * residuals[f][1][i];
-                products[f] += product[f];
+        // Band by band of rows, each pixel's samples its own whatever the window: what is held
+        // stays small beside a large film's fit.
+        const FilmWindow all = boundingWindow(both, o.width, o.height);
+        for (int y0 = all.y0; y0 < all.y0 + all.height; y0 += kResidualRows) {
+            const FilmWindow band{all.x0, y0, all.width,
+                                  std::min(kResidualRows, all.y0 + all.height - y0)};
+            const std::vector<std::uint8_t> rendered = cropped(both, o.width, band);
+            const auto renderAt = [&](const SceneView& v, const FitResult& fit, std::uint64_t r) {
+                std::vector<PhongMaterial> theta;
+                for (const MaterialFit& m : fit.materials) theta.push_back(m.material());
+                RenderOptions options = renderOptionsAt(v, theta, recording.threads);
+                options.spp = kResidualSpp;
+                options.seed = recording.seed * 7919 + 1299709 + r;  // apart from the recordings
+                options.window = band;
+                options.rendered = rendered;
+                RenderResult out = v.renderer->render(options);
+                const double exposure = fit.exposure ? fit.exposure->value : 1.0;
+                for (float& x : out.rgb) x = float(exposure * x);
+                return out.rgb;
+            };
+            const std::vector<float> renders[2][2] = {
+                {renderAt(first.views[k], firstFit, 0), renderAt(first.views[k], firstFit, 1)},
+                {renderAt(second.views[k], secondFit, 0), renderAt(second.views[k], secondFit, 1)}};
+            for (std::size_t q = 0; q < band.pixels(); ++q) {
+                if (!rendered[q]) continue;
+                const std::size_t p =
+                    std::size_t(band.y0 + int(q) / band.width) * std::size_t(o.width) +
+                    std::size_t(band.x0 + int(q) % band.width);
+                for (std::size_t c = 0; c < 3; ++c) {
+                    double product[2];
+                    for (int f = 0; f < 2; ++f) {
+                        product[f] = (o.rgb[3 * p + c] - renders[f][0][3 * q + c]) *
+                                     (o.rgb[3 * p + c] - renders[f][1][3 * q + c]);
+                        products[f] += product[f];
+                    }
+                    differences += product[0] - product[1];
+                    differenceSquares += std::pow(product[0] - product[1], 2);
+                    ++values;
+                }
             }
-            differences += product[0] - product[1];
-            differenceSquares += std::pow(product[0] - product[1], 2);
-            ++values;
         }
     }
     ImageResiduals out;

@@ -27,8 +27,10 @@ std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& probl
 std::vector<std::optional<PixelFilter>> alikeFilters(const SceneFitProblem& problem,
                                                      const FitResult& result);
 
-// Paths a pixel of each of the two renders of a fit's estimate that imageResiduals compares.
+// Paths a pixel of each of the two renders of a fit's estimate that imageResiduals compares, and
+// the rows of film rendered at a time.
 inline constexpr int kResidualSpp = 128;
+inline constexpr int kResidualRows = 32;
 
 // The rms difference between the images and each fit's estimate rendered anew, over every view's
 // pixels that both fits use inside the silhouettes by the wider filter's reach: the mean product of
