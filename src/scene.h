@@ -120,6 +120,7 @@ inline constexpr double kMaxFilterWidth = 64;
 struct PixelFilter {
     SensorDesc::Filter filter = SensorDesc::Filter::Box;
     double width = 0;
+    bool operator==(const PixelFilter&) const = default;
 };
 inline PixelFilter pixelFilterOf(const SensorDesc& film) {
     return {film.filter, pixelFilterName(film.filter).width != nullptr ? film.filterWidth : 0};

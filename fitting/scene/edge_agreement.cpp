@@ -127,11 +127,8 @@ double bestWidth(double defaultWidth, const Misfit& misfit) {
 std::optional<std::pair<PixelFilter, double>> alikeFilter(
     const std::vector<std::pair<PixelFilter, double>>& tried,
     const std::pair<PixelFilter, double>& best, std::size_t defaults) {
-    const auto same = [](const PixelFilter& x, const PixelFilter& y) {
-        return x.filter == y.filter && x.width == y.width;
-    };
     const bool bestDefault = std::any_of(tried.begin(), tried.begin() + std::ptrdiff_t(defaults),
-                                         [&](const auto& t) { return same(t.first, best.first); });
+                                         [&](const auto& t) { return t.first == best.first; });
     std::optional<std::pair<PixelFilter, double>> alike;
     for (std::size_t k = 0; k < tried.size(); ++k) {
         if (k == defaults && (alike || bestDefault)) break;
@@ -219,7 +216,7 @@ EdgeCheck edgeAgreement(const SceneView& v, const std::vector<PhongMaterial>& fi
     // pixels lit has no misfit.
     const PixelFilter own = pixelFilterOf(v.renderer->scene().sensor);
     const auto misfitWith = [&](const PixelFilter& f) {
-        if (f.filter == own.filter && f.width == own.width) return check.misfit;
+        if (f == own) return check.misfit;
         const auto [lit, misfit] = litMisfit(deviationsWith(f));
         return lit < kLeastEdgePixels ? std::numeric_limits<double>::infinity() : misfit;
     };
