@@ -27,6 +27,12 @@ PhongMaterial MaterialFit::material() const {
     return m;
 }
 
+std::vector<PhongMaterial> FitResult::fittedMaterials() const {
+    std::vector<PhongMaterial> out;
+    for (const MaterialFit& m : materials) out.push_back(m.material());
+    return out;
+}
+
 bool MaterialFit::isUnconstrained(const std::string& name) const {
     return std::find(unconstrained.begin(), unconstrained.end(), name) != unconstrained.end();
 }

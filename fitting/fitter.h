@@ -209,7 +209,10 @@ struct EdgeCheck {
 struct FitResult {
     std::vector<MaterialFit> materials;   // indexed by slot
     std::optional<ExposureFit> exposure;  // with FitOptions::fitExposure
-    double rmse = 0;                      // of the last round
+    // The estimate: the materials per slot, and the images' exposure (1 where it is not fitted).
+    std::vector<PhongMaterial> fittedMaterials() const;
+    double exposureValue() const { return exposure ? exposure->value : 1.0; }
+    double rmse = 0;  // of the last round
     std::vector<FitRound> rounds;
     double timeSeconds = 0;
     // The parameters stopped moving between rounds or, on exact path sets (the same list passed

@@ -53,6 +53,14 @@ ImageResiduals imageResiduals(const SceneFitProblem& first, const FitResult& fir
         std::vector<std::uint8_t> both(o.valid.size());
         for (std::size_t p = 0; p < both.size(); ++p)
             both[p] = o.valid[p] && second.views[k].observation.valid[p] && inside.data[p];
+        // Each fit's estimate, rendered as its view's image was.
+        const SceneView* views[2] = {&first.views[k], &second.views[k]};
+        const FitResult* fits[2] = {&firstFit, &secondFit};
+        RenderOptions options[2];
+        for (int f = 0; f < 2; ++f) {
+            options[f] = renderOptionsAt(*views[f], fits[f]->fittedMaterials(), recording.threads);
+            options[f].spp = kResidualSpp;
+        }
         // Band by band of rows, each pixel's samples its own whatever the window: what is held
         // stays small beside a large film's fit.
         const FilmWindow all = boundingWindow(both, o.width, o.height);
@@ -60,22 +68,18 @@ ImageResiduals imageResiduals(const SceneFitProblem& first, const FitResult& fir
             const FilmWindow band{all.x0, y0, all.width,
                                   std::min(kResidualRows, all.y0 + all.height - y0)};
             const std::vector<std::uint8_t> rendered = cropped(both, o.width, band);
-            const auto renderAt = [&](const SceneView& v, const FitResult& fit, std::uint64_t r) {
-                std::vector<PhongMaterial> theta;
-                for (const MaterialFit& m : fit.materials) theta.push_back(m.material());
-                RenderOptions options = renderOptionsAt(v, theta, recording.threads);
-                options.spp = kResidualSpp;
-                options.seed = recording.seed * 7919 + 1299709 + r;  // apart from the recordings
-                options.window = band;
-                options.rendered = rendered;
-                RenderResult out = v.renderer->render(options);
-                const double exposure = fit.exposure ? fit.exposure->value : 1.0;
+            const auto renderAt = [&](int f, std::uint64_t r) {
+                RenderOptions at = options[f];
+                at.seed = recording.seed * 7919 + 1299709 + r;  // apart from the recordings
+                at.window = band;
+                at.rendered = rendered;
+                RenderResult out = views[f]->renderer->render(at);
+                const double exposure = fits[f]->exposureValue();
                 for (float& x : out.rgb) x = float(exposure * x);
                 return out.rgb;
             };
-            const std::vector<float> renders[2][2] = {
-                {renderAt(first.views[k], firstFit, 0), renderAt(first.views[k], firstFit, 1)},
-                {renderAt(second.views[k], secondFit, 0), renderAt(second.views[k], secondFit, 1)}};
+            const std::vector<float> renders[2][2] = {{renderAt(0, 0), renderAt(0, 1)},
+                                                      {renderAt(1, 0), renderAt(1, 1)}};
             for (std::size_t q = 0; q < band.pixels(); ++q) {
                 if (!rendered[q]) continue;
                 const std::size_t p =

@@ -388,9 +388,8 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
     // A converged fit of an image its scene misstates is a confident wrong answer. Part of the
     // fit's time.
     const auto checkBegin = std::chrono::steady_clock::now();
-    std::vector<PhongMaterial> fitted;
-    for (const MaterialFit& m : result.materials) fitted.push_back(m.material());
-    const double exposure = result.exposure ? result.exposure->value : 1.0;
+    const std::vector<PhongMaterial> fitted = result.fittedMaterials();
+    const double exposure = result.exposureValue();
     for (const SceneView& v : problem.views) {
         result.edgeChecks.push_back(edgeAgreement(v, fitted, exposure, imageSpp(v, recording),
                                                   recording.seed, recording.threads));
@@ -436,8 +435,7 @@ nlohmann::json renderedAsJson(const SceneView& v, const SceneRecording& recordin
 
 void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
                    const SceneRecording& recording, int compareSpp, const std::string& dir) {
-    std::vector<PhongMaterial> fitted;
-    for (const MaterialFit& m : result.materials) fitted.push_back(m.material());
+    const std::vector<PhongMaterial> fitted = result.fittedMaterials();
     nlohmann::json report = toJson(result, problem.materials);
     report["record_spp"] = recording.spp;
     report["seed"] = recording.seed;
@@ -493,7 +491,7 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
                     [&](const fs::path& tmp) { std::ofstream(tmp) << report.dump(2) << "\n"; });
     std::map<std::string, PhongMaterial> byId;
     for (std::size_t s = 0; s < fitted.size(); ++s) byId[problem.materials[s]] = fitted[s];
-    const double exposure = result.exposure ? result.exposure->value : 1.0;
+    const double exposure = result.exposureValue();
     for (std::size_t k = 0; k < problem.views.size(); ++k) {
         const std::string suffix = k == 0 ? "" : fmt::format("_view{}", k + 1);
         writeSceneWithMaterials(problem.views[k].scenePath, problem.defines, byId,
