@@ -150,8 +150,7 @@ RenderResult Renderer::render(const RenderOptions& options) const {
     SensorDesc sensor = scene_.sensor;
     if (options.pixelFilter) {
         const double w = options.pixelFilter->width;
-        if (pixelFilterName(options.pixelFilter->filter).width != nullptr &&
-            !(w > 0 && w <= kMaxFilterWidth))
+        if (pixelFilterName(options.pixelFilter->filter).width != nullptr && !filterWidthAllowed(w))
             throw Error(
                 fmt::format("render: pixel filter width {} is not in (0, {}]", w, kMaxFilterWidth));
         setPixelFilter(sensor, *options.pixelFilter);

@@ -114,6 +114,7 @@ inline const PixelFilterName& pixelFilterName(SensorDesc::Filter filter) {
 // A pixel filter's stddev or radius: its samples land this many pixels from the pixel at most
 // (a Gaussian's within a few stddevs), which keeps film positions and camera rays finite.
 inline constexpr double kMaxFilterWidth = 64;
+inline bool filterWidthAllowed(double width) { return width > 0 && width <= kMaxFilterWidth; }
 
 // A pixel filter and its width (SensorDesc::filterWidth; the box takes none): a render's in place
 // of the film's (RenderOptions::pixelFilter), the one an image's edges show (EdgeCheck).

@@ -277,7 +277,7 @@ private:
         if (f.width != nullptr) {
             // In pixels: > 0, and within the film's reach of a pixel.
             sensor.filterWidth = p.getFloat(f.width).value_or(f.defaultWidth);
-            if (!(sensor.filterWidth > 0 && sensor.filterWidth <= kMaxFilterWidth))
+            if (!filterWidthAllowed(sensor.filterWidth))
                 ctx_.fail(p.node(f.width),
                           fmt::format("{} {} is invalid (allowed: > 0 and <= {} pixels)", f.width,
                                       sensor.filterWidth, kMaxFilterWidth));
