@@ -19,6 +19,9 @@ struct FilmWindow {
 // the whole film where none is.
 FilmWindow boundingWindow(const std::vector<std::uint8_t>& flags, int width, int height);
 
+// The smallest window holding `pixels` (indices into a film `width` wide, at least one).
+FilmWindow boundingWindow(const std::vector<std::uint32_t>& pixels, int width);
+
 // `w` grown by `margin` pixels on every side, within the width x height film.
 FilmWindow widened(const FilmWindow& w, int margin, int width, int height);
 

@@ -11,6 +11,7 @@
 #include <numeric>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
+#include <tuple>
 
 #include "error.h"
 #include "error_of.h"
@@ -187,6 +188,13 @@ TEST(FilmWindow, BoundsTheFlaggedPixelsAndCropsToThem) {
     EXPECT_EQ(w.y0, 1);
     EXPECT_EQ(w.width, 3);
     EXPECT_EQ(w.height, 3);
+    // The same pixels listed, in any order: the same window, and one pixel's own.
+    const FilmWindow listed = boundingWindow(std::vector<std::uint32_t>{3 * 6 + 4, 1 * 6 + 2}, 6);
+    EXPECT_EQ(std::tie(listed.x0, listed.y0, listed.width, listed.height),
+              std::tie(w.x0, w.y0, w.width, w.height));
+    const FilmWindow single = boundingWindow(std::vector<std::uint32_t>{4 * 6 + 5}, 6);
+    EXPECT_EQ(std::tie(single.x0, single.y0, single.width, single.height),
+              std::make_tuple(5, 4, 1, 1));
     const FilmWindow wide = widened(w, 2, 6, 5);  // clipped by the film on three sides
     EXPECT_EQ(wide.x0, 0);
     EXPECT_EQ(wide.y0, 0);
