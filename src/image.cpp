@@ -29,6 +29,13 @@ std::string lowercaseExtension(const std::string& path) {
     return ext;
 }
 
+// The extensions readImage reads.
+bool readableExtension(const std::string& ext) {
+    for (const char* known : {".exr", ".pfm", ".png", ".jpg", ".jpeg", ".tif", ".tiff"})
+        if (ext == known) return true;
+    return false;
+}
+
 void requireReadableFile(const std::string& path, const char* what) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
@@ -256,8 +263,7 @@ double linearToSrgb(double v) {
 Image readImage(const std::string& path, const ReadOptions& options) {
     const std::string ext = lowercaseExtension(path);
     const bool exr = ext == ".exr", pfm = ext == ".pfm";
-    if (!exr && !pfm && ext != ".png" && ext != ".jpg" && ext != ".jpeg" && ext != ".tif" &&
-        ext != ".tiff")
+    if (!readableExtension(ext))
         throw Error(
             fmt::format("cannot read image '{}': unknown extension '{}' (allowed: .exr, .pfm, "
                         ".png, .jpg, .jpeg, .tif, .tiff)",
@@ -268,6 +274,15 @@ Image readImage(const std::string& path, const ReadOptions& options) {
                         : readLdr(path, options);
     if (image.pixelCount() == 0) throw Error(fmt::format("image '{}' has no pixels", path));
     return image;
+}
+
+void requireExrName(const std::string& path) {
+    const std::string ext = lowercaseExtension(path);
+    if (ext != ".exr" && readableExtension(ext))
+        throw Error(
+            fmt::format("cannot write '{}': the image is written as OpenEXR, which a '{}' "
+                        "file would not hold; name it .exr",
+                        path, ext));
 }
 
 std::vector<std::uint8_t> readMask(const std::string& path, int width, int height) {

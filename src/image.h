@@ -78,6 +78,9 @@ std::vector<std::uint8_t> readMask(const std::string& path, int width, int heigh
 
 // Float32 RGB, ZIP-compressed, atomic. Throws Error if the image holds NaN or infinity.
 void writeExr(const Image& image, const std::string& path);
+// Throws where `path` names another format readImage reads (a render's -o a.pfm): an OpenEXR file
+// under that name is refused by its format's readers. Other names (none, .out) are left as given.
+void requireExrName(const std::string& path);
 // Linear RGB times `exposure`, clamped to [0, 1], sRGB-encoded to 8 bits; atomic. Throws Error if
 // the image holds NaN or infinity, or exposure is not finite and > 0.
 void writePng(const Image& image, const std::string& path, double exposure = 1.0);

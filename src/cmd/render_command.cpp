@@ -48,6 +48,7 @@ void requireOutputDirectory(const std::string& path) {
 }
 
 void runRender(const RenderArgs& args) {
+    requireExrName(args.output);
     requireOutputDirectory(args.output);
     if (!args.png.empty()) requireOutputDirectory(args.png);
     Renderer renderer(loadScene(args.scene, parseDefines(args.defines)));

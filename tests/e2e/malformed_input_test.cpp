@@ -430,6 +430,11 @@ const std::vector<Case> kCases = {
      [](const fs::path& d) { writeText(d / "s.xml", kScene); },
      {"render", "{d}/s.xml", "-o", "{d}/no/such/out.exr"},
      "does not exist"},
+    // An EXR under another format's name, which that format's readers (fit's PFM reader) refuse.
+    {"OutputNamedAsAnotherFormat",
+     [](const fs::path& d) { writeText(d / "s.xml", kScene); },
+     {"render", "{d}/s.xml", "-o", "{d}/out.PFM"},
+     "out.PFM': the image is written as OpenEXR, which a '.pfm' file would not hold; name it .exr"},
     {"OutputIsADirectory",
      [](const fs::path& d) {
          writeText(d / "s.xml", kScene);
