@@ -37,6 +37,11 @@ bool MaterialFit::isUnconstrained(const std::string& name) const {
     return std::find(unconstrained.begin(), unconstrained.end(), name) != unconstrained.end();
 }
 
+bool MaterialFit::ksUnconstrained() const {
+    return std::any_of(unconstrained.begin(), unconstrained.end(),
+                       [](const std::string& name) { return name.starts_with("ks"); });
+}
+
 namespace {
 
 FitResult fit(const std::vector<Observation>& observations, const RecordAll& recordAll,

@@ -71,6 +71,8 @@ struct MaterialFit {
     PhongMaterial material() const;
     // Whether `name` ("kd", "ks.g", "n") is listed in `unconstrained`.
     bool isUnconstrained(const std::string& name) const;
+    // Whether ks, or one of its channels, is listed there.
+    bool ksUnconstrained() const;
 };
 
 // The free parameters whose standard error is as large as the parameter itself (kd and ks:

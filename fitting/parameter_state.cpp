@@ -36,6 +36,13 @@ void ParameterState<P>::releaseExponents() {
 }
 
 template <int P>
+void ParameterState<P>::releaseLobe(int b) {
+    HeldParams& h = held_[std::size_t(b)];
+    h.ks.fill(false);
+    h.n = false;
+}
+
+template <int P>
 void ParameterState<P>::holdAll(int b) {
     HeldParams& h = held_[std::size_t(b)];
     h.kd.fill(true);

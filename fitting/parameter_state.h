@@ -52,6 +52,8 @@ public:
     void startAt(const Estimate& estimate);
     // Whether the images show a lobe is decided anew each round: a material's n is free again.
     void releaseExponents();
+    // Material b's ks and n free again (a lobe lost, lost_lobe.h).
+    void releaseLobe(int b);
     // A block no used pixel sees is held whole.
     void holdAll(int b);
 

@@ -16,6 +16,7 @@
 #include "fit_input.h"
 #include "identifiability.h"
 #include "image_noise.h"
+#include "lost_lobe.h"
 #include "memory_info.h"
 #include "memory_plan.h"
 #include "parameter_state.h"
@@ -63,10 +64,7 @@ Estimate estimateOf(const RoundOutcome& out, const Estimate& before, bool fitExp
     for (std::size_t s = 0; s < e.materials.size(); ++s) {
         const MaterialFit& fit = out.materials[s];
         e.materials[s] = fit.material();
-        const bool lobeHeld =
-            std::any_of(fit.unconstrained.begin(), fit.unconstrained.end(),
-                        [](const std::string& name) { return name.starts_with("ks"); });
-        if (fit.isUnconstrained("n") && !lobeHeld)
+        if (fit.isUnconstrained("n") && !fit.ksUnconstrained())
             e.materials[s].n = std::clamp(start[s].n, kMinExponent, kMaxExponent);
     }
     if (fitExposure) e.exposure = out.exposure.value;
@@ -314,6 +312,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // paths (a second stride at 2 paths a pixel left 0128 out of its tolerance when the rounds ran
     // out). `atStride`: the next round records at it.
     bool strided = false, atStride = false;
+    bool lobeRecovered = false;    // a lobe lost was recorded again where it was seen (once a fit)
     bool vouched = false;          // the fit ends at a converged estimate its probe came back to
     RoundPathNoise previousRound;  // the last round's path noise, where its recordings resolve it
     // The rounds that settled at the estimate since it last moved (pooled_rounds.h), if any.
@@ -519,7 +518,23 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 result.converged = false;
             }
         const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
-        if (result.converged) {
+        // A lobe the round before showed and this one lost, its ks held at the start: the next
+        // round records again where it was seen, with more paths, its ks and n free (lost_lobe.h).
+        const std::vector<int> lost =
+            !lobeRecovered && !r.probe && followsEstimate && !exact && round + 1 < maxRounds &&
+                    result.rounds.size() >= 2
+                ? lostLobes(result.rounds[result.rounds.size() - 2].materials, out.materials)
+                : std::vector<int>{};
+        if (!lost.empty()) {
+            for (int s : lost) {
+                theta.materials[std::size_t(s)] = recorded.materials[std::size_t(s)];
+                params.releaseLobe(s);
+            }
+            lobeRecovered = true;
+            result.converged = false;
+            pathFactor *= kLostLobePaths;
+            growth = pathFactor / recordFactor;
+        } else if (result.converged) {
             const Settled next =
                 settle<P>(result, out, params, options, pooledFactor, !exact,
                           probesSharper && !exact, round + 1 == maxRounds, theta.materials);
