@@ -8,17 +8,39 @@
 
 namespace phongfit {
 
-std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& problem,
-                                                    const FitResult& result) {
+namespace {
+
+// Per view whose film names no filter, whose image no sidecar describes (filterAssumed) and whose
+// filter was not taken from its edges already: `pick` of its edge check. Empty where none picks
+// one.
+template <typename Pick>
+std::vector<std::optional<PixelFilter>> perAssumedView(const SceneFitProblem& problem,
+                                                       const FitResult& result, Pick pick) {
     std::vector<std::optional<PixelFilter>> filters(problem.views.size());
     bool any = false;
     for (std::size_t k = 0; k < problem.views.size() && k < result.edgeChecks.size(); ++k) {
         const SceneView& v = problem.views[k];
         if (v.filterFromEdges || !filterAssumed(v.renderer->scene().sensor, v.renderedAs)) continue;
-        filters[k] = result.edgeChecks[k].betterFilter;
+        filters[k] = pick(result.edgeChecks[k]);
         any = any || filters[k].has_value();
     }
     return any ? filters : std::vector<std::optional<PixelFilter>>{};
+}
+
+}  // namespace
+
+std::vector<std::optional<PixelFilter>> edgeFilters(const SceneFitProblem& problem,
+                                                    const FitResult& result) {
+    return perAssumedView(problem, result, [](const EdgeCheck& e) { return e.betterFilter; });
+}
+
+std::vector<std::optional<PixelFilter>> untoldFilters(const SceneFitProblem& problem,
+                                                      const FitResult& result) {
+    return perAssumedView(problem, result, [](const EdgeCheck& e) -> std::optional<PixelFilter> {
+        if (e.betterFilter) return std::nullopt;
+        return PixelFilter{SensorDesc::Filter::Gaussian,
+                           pixelFilterName(SensorDesc::Filter::Gaussian).defaultWidth};
+    });
 }
 
 std::vector<std::optional<PixelFilter>> alikeFilters(const SceneFitProblem& problem,

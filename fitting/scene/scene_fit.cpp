@@ -405,11 +405,14 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
 
 namespace {
 
-// What fit.json says of a view's pixel filter where its image's edges chose it.
-nlohmann::json edgeFilterReport(const SceneFitProblem& problem, std::size_t k) {
-    nlohmann::json report =
-        pixelFilterJson(pixelFilterOf(problem.views[k].renderer->scene().sensor));
-    report["from"] = "edges";
+// What fit.json says of a view's pixel filter: where its image's edges chose it, or where the
+// scene, a sidecar or the default did; and the other filter the fit ran with, if any.
+nlohmann::json filterReport(const SceneFitProblem& problem, std::size_t k) {
+    const SceneView& v = problem.views[k];
+    const SensorDesc& film = v.renderer->scene().sensor;
+    nlohmann::json report = v.filterFromEdges ? pixelFilterJson(pixelFilterOf(film))
+                                              : pixelFilterReport(film, v.renderedAs);
+    if (v.filterFromEdges) report["from"] = "edges";
     if (const auto& other = problem.otherFilterFit;
         other && k < other->filters.size() && other->filters[k]) {
         report["residual_rms"] = other->keptResidual;
@@ -456,21 +459,18 @@ void writeSceneFit(const SceneFitProblem& problem, const FitResult& result,
     report["area_lights"] = any(ringed) ? "rings" : any(emitting) ? "sampled" : "none";
     for (std::size_t k = 0; k < problem.views.size(); ++k) {
         const SceneView& v = problem.views[k];
-        report["views"].push_back(
-            {{"scene", v.scenePath},
-             {"image", v.imagePath},
-             {"area_lights", areaLights(v)},
-             {"max_depth", v.renderer->effectiveMaxDepth(v.maxDepth)},
-             {"left_out", v.depthNote},
-             {"pixels_clipped", v.clipped},
-             {"pixels_masked", v.masked},
-             {"pixels_off_the_materials", v.offMaterials},
-             {"pixels_non_finite", v.nonFinite},
-             {"pixels_without_data", v.noData},
-             {"pixel_filter", v.filterFromEdges
-                                  ? edgeFilterReport(problem, k)
-                                  : pixelFilterReport(v.renderer->scene().sensor, v.renderedAs)},
-             {"image_rendered_as", renderedAsJson(v, recording)}});
+        report["views"].push_back({{"scene", v.scenePath},
+                                   {"image", v.imagePath},
+                                   {"area_lights", areaLights(v)},
+                                   {"max_depth", v.renderer->effectiveMaxDepth(v.maxDepth)},
+                                   {"left_out", v.depthNote},
+                                   {"pixels_clipped", v.clipped},
+                                   {"pixels_masked", v.masked},
+                                   {"pixels_off_the_materials", v.offMaterials},
+                                   {"pixels_non_finite", v.nonFinite},
+                                   {"pixels_without_data", v.noData},
+                                   {"pixel_filter", filterReport(problem, k)},
+                                   {"image_rendered_as", renderedAsJson(v, recording)}});
     }
     for (std::size_t k = 0; k < result.edgeChecks.size() && k < problem.views.size(); ++k) {
         const EdgeCheck& e = result.edgeChecks[k];

@@ -149,23 +149,35 @@ void runSceneFit(const FitCli& a) {
         out.second.timeSeconds += result.timeSeconds;
         return out;
     };
-    const auto named = edgeFilters(problem, result), alike = alikeFilters(problem, result);
+    // Another fit with `filters`, the one that renders closer kept (`used`: the first fit's).
+    const auto fitAlsoWith = [&](const std::vector<std::optional<PixelFilter>>& used,
+                                 const std::vector<std::optional<PixelFilter>>& filters) {
+        auto [otherProblem, other] = fitWith(filters);
+        if (other.interrupted) {
+            fmt::print("interrupted: the fit with the edges' filter stands\n");
+            result.interrupted = true;
+            result.timeSeconds = other.timeSeconds;
+        } else {
+            keepCloserFit(problem, result, std::move(otherProblem), std::move(other), used, filters,
+                          recording);
+        }
+    };
+    const auto named = edgeFilters(problem, result), alike = alikeFilters(problem, result),
+               untold = untoldFilters(problem, result);
     if (!named.empty() && room()) {
         printEdgeFilters(problem, result, named);
         const std::vector<EdgeCheck> checks = result.edgeChecks;
         std::tie(problem, result) = fitWith(named);
         if (!alike.empty() && room()) {
             printAlikeFilters(problem, checks, named, alike);
-            auto [otherProblem, other] = fitWith(alike);
-            if (other.interrupted) {
-                fmt::print("interrupted: the fit with the edges' filter stands\n");
-                result.interrupted = true;
-                result.timeSeconds = other.timeSeconds;
-            } else {
-                keepCloserFit(problem, result, std::move(otherProblem), std::move(other), named,
-                              alike, recording);
-            }
+            fitAlsoWith(named, alike);
         }
+    } else if (!untold.empty() && room()) {
+        printUntoldFilters(problem, untold);
+        std::vector<std::optional<PixelFilter>> box(untold.size());
+        for (std::size_t k = 0; k < untold.size(); ++k)
+            if (untold[k]) box[k] = PixelFilter{};
+        fitAlsoWith(box, untold);
     }
     writeSceneFit(problem, result, recording, a.compareSpp, a.output);
     printSceneFit(problem, result, a.grey, a.output);

@@ -142,6 +142,17 @@ void printAlikeFilters(const SceneFitProblem& problem, const std::vector<EdgeChe
                 pixelFilterLabel(*named[k]), checks[k].alikeMisfit, checks[k].betterMisfit);
 }
 
+void printUntoldFilters(const SceneFitProblem& problem,
+                        const std::vector<std::optional<PixelFilter>>& untold) {
+    for (std::size_t k = 0; k < untold.size() && k < problem.views.size(); ++k)
+        if (untold[k])
+            fmt::print(
+                "{}: its edges do not tell phongfit's box from a {} pixel filter, and neither the "
+                "film nor a sidecar names one: fitted with it too, the fit that holds the image "
+                "better kept\n",
+                problem.views[k].imagePath, pixelFilterLabel(*untold[k]));
+}
+
 void printFilterChoice(const SceneFitProblem& problem,
                        const std::vector<std::optional<PixelFilter>>& named,
                        const std::vector<std::optional<PixelFilter>>& alike,

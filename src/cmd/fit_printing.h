@@ -26,6 +26,10 @@ void printAlikeFilters(const SceneFitProblem& problem, const std::vector<EdgeChe
                        const std::vector<std::optional<PixelFilter>>& named,
                        const std::vector<std::optional<PixelFilter>>& alike);
 
+// The views whose edges could not tell phongfit's box from the `untold` filters (untoldFilters).
+void printUntoldFilters(const SceneFitProblem& problem,
+                        const std::vector<std::optional<PixelFilter>>& untold);
+
 // Of the fits with edgeFilters' (`named`) and alikeFilters' (`alike`) filters, which was kept,
 // and how far each estimate, rendered anew, is from the images.
 void printFilterChoice(const SceneFitProblem& problem,
