@@ -23,17 +23,29 @@ bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
     // A lobe no pixel sees (ks and n both found) stays where it is unseen: n at its start, where
     // the held ks (its start) would be seen, was a lobe the images contradict, and kd fitted to
     // make up for it (kd 0.32 for 0.49 where n had gone to its bound, 1e6, from a start of 60).
-    std::vector<int> atStart, inPlace;
+    // A ks found with its n (or with its n held) is held at 0, not at its start: unseen (n at 1e6)
+    // or shapeless (n near 0, ks collinear with kd), the images show no lobe, and a shapeless one
+    // held at the start's 0.3 took 0.3 from kd (a lobeless point-lit sphere: kd 0, 0.587, 0.106
+    // for 0.175, 0.844, 0.362). A ks found alone (a channel no light reaches) stays at its start.
+    const auto isSpecular = [](int index) {
+        return index % P >= L::specular(0) && index % P < L::kLogN;
+    };
+    const auto foundWith = [&](int s, const auto& kind) {
+        return std::any_of(found.begin(), found.end(),
+                           [&](int other) { return other / P == s && kind(other); });
+    };
+    std::vector<int> atStart, inPlace, absent;
     for (int index : found) {
         const int s = index / P;
-        const bool unseenLobe =
-            index % P == L::kLogN && std::any_of(found.begin(), found.end(), [&](int other) {
-                return other / P == s && other % P >= L::specular(0) && other % P < L::kLogN;
-            });
-        (unseenLobe ? inPlace : atStart).push_back(index);
+        const bool unseenLobe = index % P == L::kLogN && foundWith(s, isSpecular);
+        const bool noLobe =
+            isSpecular(index) &&
+            (params.held(s).n || foundWith(s, [](int other) { return other % P == L::kLogN; }));
+        (noLobe ? absent : unseenLobe ? inPlace : atStart).push_back(index);
     }
     const bool held = params.hold(atStart);
-    return params.hold(inPlace, false) || held || holdUnseenExponents(analysis, params);
+    const bool zeroed = params.holdAtZero(absent);
+    return params.hold(inPlace, false) || held || zeroed || holdUnseenExponents(analysis, params);
 }
 
 template <int P>

@@ -127,6 +127,18 @@ bool ParameterState<P>::hold(const std::vector<int>& indices, bool atStart) {
 }
 
 template <int P>
+bool ParameterState<P>::holdAtZero(const std::vector<int>& indices) {
+    for (int index : indices) {
+        const int b = index / P, g = index % P - L::kGroups;
+        if (L::kGroups == 3)
+            start_[std::size_t(b)].ks[g] = 0;
+        else
+            start_[std::size_t(b)].ks.setZero();
+    }
+    return hold(indices);
+}
+
+template <int P>
 void ParameterState<P>::holdExposure() {
     const int e = exposure_.slot();
     std::vector<NaturalVector> y = naturalBlocks();

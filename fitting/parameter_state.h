@@ -74,6 +74,9 @@ public:
     // false), keeping the block's other parameters where they are; the exposure as holdExposure
     // does. True if any was free.
     bool hold(const std::vector<int>& indices, bool atStart = true);
+    // Holds the flat ks parameters `indices` at 0, their start too (a round's startAt restores held
+    // coordinates from the start): a lobe the images do not show. True if any was free.
+    bool holdAtZero(const std::vector<int>& indices);
 
     // The exposure now, and (ExposureBlock::matched) its start and value set to s.
     double exposureValue() const;
