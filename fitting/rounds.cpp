@@ -518,7 +518,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                 result.converged = false;
             }
         const double pooledFactor = joinable ? joinable->pathFactor : recordFactor;
-        // A lobe the round before showed and this one lost, its ks held at the start: the next
+        // A lobe the round before showed and this one lost, its ks held with its n: the next
         // round records again where it was seen, with more paths, its ks and n free (lost_lobe.h).
         const std::vector<int> lost =
             !lobeRecovered && !r.probe && followsEstimate && !exact && round + 1 < maxRounds &&
