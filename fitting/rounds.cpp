@@ -283,8 +283,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     std::vector<PixelPaths> firstPaths;          // per view, the first round's paths per pixel
     double pathFactor = 1, growth = 1;           // FitOptions::precision's paths, and their change
     // A probe round's paths, and a second probe's from the same start (`probeStart`) where the
-    // first could not tell the converged n from it (probePaths).
+    // first could not tell the converged n from it (probePaths); the converged round's paths, a
+    // second probe's where the first was pulled broader (pulledBroader).
     double probePathFactor = kProbePaths, retryPathFactor = kProbePaths;
+    double probedPathFactor = kProbePaths;
     std::vector<PhongMaterial> probeStart;
     // Per material, the sharpest n a round recorded at; and whether the last round probes an
     // estimate that had not settled.
@@ -396,8 +398,10 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         }
         // A probe round recorded at a sharper lobe: the converged estimate stands if it came back
         // (judged before lobe confirmation, which the probe's jump would put in the scatter) from
-        // a solve not cut short.
-        const bool probeBack = probed && !solveOptions.stopRequested() &&
+        // a solve not cut short, and not only by its few paths' pull.
+        const bool pulled = probed && recordFactor < probedPathFactor &&
+                            pulledBroader(probed->materials, out.materials, probedPathFactor);
+        const bool probeBack = probed && !solveOptions.stopRequested() && !pulled &&
                                probeReturned(probed->materials, out.materials);
         // A probe that did not come back settles nothing: the rounds go on from its estimate
         // (sharper_probe.h), its own move from the sharper lobe it was recorded at aside.
@@ -463,11 +467,11 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                                              joinable ? joinable->pathFactor : recordFactor}
                             : RoundPathNoise{};
         const bool stop = solveOptions.stopRequested();
-        // A probe that could not tell is probed again, once: after the second probe
-        // recordFactor equals retryPathFactor.
+        // A probe that could not tell, or was pulled broader, is probed again, once: after the
+        // second probe recordFactor is at least retryPathFactor, and probedPathFactor if pulled.
         const bool retry = probed && !probeBack && !probeLeft && !stop &&
-                           recordFactor < retryPathFactor &&
-                           !probeTold(probed->materials, out.materials);
+                           (pulled || (recordFactor < retryPathFactor &&
+                                       !probeTold(probed->materials, out.materials)));
         if (probeBack) {
             probed->rounds = std::move(result.rounds);
             result = std::move(*probed);
@@ -498,7 +502,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
         }
         if (probeLeft) break;
         if (retry) {
-            probePathFactor = retryPathFactor;
+            probePathFactor =
+                pulled ? std::max(probedPathFactor, retryPathFactor) : retryPathFactor;
             growth = probePathFactor / recordFactor;
             theta.materials = probeStart;
             importance = nextImportance<P>(observations, sets, params, theta, out, threads);
@@ -589,6 +594,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             result.stopReason = "rounds";
             probePathFactor = firstProbePaths(out.materials, pooledFactor, round + 2 == maxRounds);
             retryPathFactor = probePaths(out.materials, pooledFactor);
+            probedPathFactor = pooledFactor;
             probeStart = sharper;
             growth = probePathFactor / recordFactor;
             theta.materials = sharper;

@@ -26,6 +26,13 @@ bool tellsApart(const MaterialFit& c, const MaterialFit& p) {
     return p.nStd < p.n && threeStd(p) < std::log(probeFactor(c));
 }
 
+// The paths relative to the first round's that put a probe's standard error of log n kProbeMargin
+// below what probeReturned asks, predicted from converged lobe `c`'s at `pathFactor`.
+double pathsToTell(const MaterialFit& c, double pathFactor) {
+    const double goal = std::log(probeFactor(c)) / (3 * kProbeMargin);
+    return pathFactor * std::pow(c.nStd / c.n / goal, 2);
+}
+
 }  // namespace
 
 std::vector<PhongMaterial> sharperProbe(const std::vector<MaterialFit>& materials,
@@ -52,8 +59,7 @@ double probePaths(const std::vector<MaterialFit>& converged, double pathFactor) 
     double paths = kProbePaths;
     for (const MaterialFit& c : converged) {
         if (!probed(c)) continue;
-        const double goal = std::log(probeFactor(c)) / (3 * kProbeMargin);
-        const double need = pathFactor * std::pow(c.nStd / c.n / goal, 2);
+        const double need = pathsToTell(c, pathFactor);
         if (need <= kMostProbePaths) paths = std::max(paths, need);
     }
     return paths;
@@ -69,6 +75,17 @@ bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<Mate
             !tellsApart(converged[s], probe[s]))
             return false;
     return true;
+}
+
+bool pulledBroader(const std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe,
+                   double pathFactor) {
+    for (std::size_t s = 0; s < converged.size() && s < probe.size(); ++s) {
+        const MaterialFit &c = converged[s], &p = probe[s];
+        if (probed(c) && !p.isUnconstrained("n") && p.n < c.n &&
+            pathsToTell(c, pathFactor) > kMostProbePaths)
+            return true;
+    }
+    return false;
 }
 
 bool probeReturned(const std::vector<MaterialFit>& converged,

@@ -58,6 +58,14 @@ bool probeReturned(const std::vector<MaterialFit>& converged,
 // it: else it did not come back for want of paths, whatever the images say.
 bool probeTold(const std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe);
 
+// Whether the probe round came back past a probed lobe's converged n to a broader lobe where no
+// probe at kMostProbePaths could tell that lobe from its start (probePaths, from the converged
+// round's `pathFactor`): a return of a few paths' pull towards the lobes they reach, as
+// widenToProbe takes it, not of the images. Such a probe is recorded again with the converged
+// round's paths (docs/design/fitter.md, "A probe pulled broader").
+bool pulledBroader(const std::vector<MaterialFit>& converged, const std::vector<MaterialFit>& probe,
+                   double pathFactor);
+
 // For a probe that did not come back and no round after it: each probed lobe's n standard error
 // in `converged` raised to reach every n the probe did not rule out: its n and 3 of its standard
 // errors beyond; at least the start where it cannot tell the converged n from its start (as

@@ -102,6 +102,25 @@ TEST(SharperProbe, ASecondProbeRecordsThePathsToTellARoughLobeFromItsStart) {
     EXPECT_EQ(firstProbePaths({lobe(1000, 10)}, 32, true), kProbePaths);
 }
 
+// A probe that came back past a rough lobe (no probe of at most kMostProbePaths could tell it from
+// its start) to a broader one was pulled there by its few paths: the Cornell box under its area
+// light at 96 x 96 (n 4475) converged at 379.7 +- 182 in a round of 16 times the first's paths,
+// and its probe from 1600 at half the first's came back to 157.8 +- 66. A probe that came back
+// sharper, one that held n, or a probe of a lobe a second probe can tell (the same lobe from a
+// round at the first's paths, or a precise one) is not pulled.
+TEST(SharperProbe, AProbeOfARoughLobeThatCameBackBroaderWasPulledByItsFewPaths) {
+    const MaterialFit rough = lobe(379.7, 182);
+    EXPECT_TRUE(probeReturned({rough}, {lobe(157.8, 66)}));
+    EXPECT_TRUE(pulledBroader({rough}, {lobe(157.8, 66)}, 16));
+    EXPECT_FALSE(pulledBroader({rough}, {lobe(500, 100)}, 16));
+    MaterialFit held = lobe(100, 0);
+    held.unconstrained = {"n"};
+    EXPECT_FALSE(pulledBroader({rough}, {held}, 16));
+    EXPECT_FALSE(pulledBroader({rough}, {lobe(157.8, 66)}, 1));
+    EXPECT_FALSE(pulledBroader({lobe(1000, 10)}, {lobe(550, 10)}, 32));
+    EXPECT_TRUE(pulledBroader({lobe(1000, 10), rough}, {lobe(1200, 10), lobe(157.8, 66)}, 16));
+}
+
 // A probe from 6000 left in the last round at n 5000 +- 1000 widens the converged n 1500 +- 100
 // to reach 8000; one that cannot tell 1500 from its start widens it to reach the start, and as far
 // as 3 of its own standard errors beyond where it went (the Cornell box under the 40-degree light,
