@@ -25,6 +25,13 @@ constexpr double kHeldShare = 0.25;
 constexpr std::size_t kRenderedPixels = 4;
 constexpr std::size_t kHolders = 8;
 
+// A lobe whose n is known to this factor or worse (3 standard errors of log n) has the image's
+// noise taken where it is sharper too: at most kSharperRungs lobes, each kSharperRung sharper than
+// the last (sharperLogNStd).
+constexpr double kSharperReach = 2;
+constexpr int kSharperRungs = 4;
+constexpr double kSharperRung = 4;
+
 // A pixel's share of a parameter's information (its term of J^T J's diagonal), and the pixel.
 struct Holder {
     double information = 0;
@@ -58,15 +65,18 @@ struct NoiseSums {
     }
 };
 
-// The pixels that hold each of `sums`' parameters: at least kHeldShare of its information, at
-// most kRenderedPixels in all (those holding the largest shares), by view.
+// The pixels that hold each of `sums`' parameters (`only` those flagged, if given): at least
+// `leastShare` of its information, at most kRenderedPixels in all (those holding the largest
+// shares), by view.
 std::map<std::uint32_t, std::vector<std::uint32_t>> heldPixels(const NoiseSums& sums,
-                                                               const UsedPixels& prep) {
+                                                               const UsedPixels& prep,
+                                                               double leastShare,
+                                                               const std::vector<bool>& only) {
     std::vector<std::pair<double, std::uint32_t>> shares;  // (-share, pixel)
     for (std::size_t g = 0; g < sums.holders.size(); ++g)
         for (const Holder& h : sums.holders[g])
             if (const double total = sums.gram(Eigen::Index(g), Eigen::Index(g));
-                total > 0 && h.information >= kHeldShare * total)
+                (only.empty() || only[g]) && total > 0 && h.information >= leastShare * total)
                 shares.emplace_back(-h.information / total, h.pixel);
     std::sort(shares.begin(), shares.end());
     std::vector<std::uint32_t> chosen;
@@ -119,22 +129,30 @@ Eigen::MatrixXd pixelTerms(Objective<P>& objective, const double* y, const UsedP
     return j;
 }
 
-// What the pixels that hold a parameter add to the modelled noise sum (kappa times `sums`'):
-// their noise as rendered, where it is larger than the model's, which an image of stratified
-// samples can be by far at a highlight smaller than a pixel (docs/design/fitter.md, "The pixels
-// that hold a parameter, rendered anew").
+// The material blocks: all but the exposure's, if it is fitted (its slot is the last).
 template <int P>
-Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const NoiseSums& sums,
-                                 double kappa, const RenderedNoise& rendered) {
+int materialBlocks(const Objective<P>& objective) {
+    const ExposureBlock& exposure = objective.exposure();
+    return exposure.fitted() ? exposure.slot() : objective.blocks();
+}
+
+// What the pixels that hold a parameter (heldPixels) add to the modelled noise sum (kappa times
+// `sums`'): their noise as rendered with the materials at `at` (flat natural coordinates), where it
+// is larger than the model's, which an image of stratified samples can be by far at a highlight
+// smaller than a pixel (docs/design/fitter.md, "The pixels that hold a parameter, rendered anew").
+template <int P>
+Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const double* at,
+                                 const NoiseSums& sums, double kappa, const RenderedNoise& rendered,
+                                 double leastShare, const std::vector<bool>& only) {
     const UsedPixels& prep = objective.pixels();
     const ExposureBlock& exposure = objective.exposure();
     std::vector<PhongMaterial> theta;
-    for (int m = 0; m < (exposure.fitted() ? exposure.slot() : objective.blocks()); ++m)
-        theta.push_back(naturalToPhong<P>(y + std::size_t(m) * P));
+    for (int m = 0; m < materialBlocks(objective); ++m)
+        theta.push_back(naturalToPhong<P>(at + std::size_t(m) * P));
     const double scale = exposure.value<P>(y);
     const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(sums.noise.rows(), sums.noise.cols());
     Eigen::MatrixXd added = zero;
-    for (const auto& held : heldPixels(sums, prep)) {
+    for (const auto& held : heldPixels(sums, prep, leastShare, only)) {
         const std::uint32_t view = held.first;
         const std::vector<std::uint32_t>& pixels = held.second;  // a lambda captures it below
         std::vector<std::uint32_t> film;
@@ -156,6 +174,83 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
         added += objective.sumPixels(pixels.size(), zero, raise);
     }
     return added;
+}
+
+// Per material, how far the image's noise reaches on the sharp side of a lobe known to
+// kSharperReach or worse (`logNStd`, per material): from the sharp end of 3 of its standard
+// errors, rung after rung kSharperRung sharper (at most kSharperRungs, up to kMaxExponent), log n's
+// standard error from the image's noise there (modelled from the paths replayed there, and the
+// pixels that hold most of n's information rendered there) through the estimate's sensitivities.
+// The first rung whose 3 standard errors reach back to the estimate is as sharp as the images
+// allow; the result is the s whose 3 reach from n to it, or its own if larger (0: no rung
+// reached back). A narrower highlight is noisier in an image of few samples, and one narrower than
+// a pixel far noisier (docs/design/fitter.md, "A sharper lobe's noisier image").
+// Per rung, J^T C J summed over the pixels: C a path's covariance replayed at the rung's lobes.
+struct RungNoise {
+    std::vector<Eigen::MatrixXd> noise;
+
+    RungNoise& operator+=(const RungNoise& other) {
+        for (std::size_t k = 0; k < noise.size(); ++k) noise[k] += other.noise[k];
+        return *this;
+    }
+};
+
+template <int P>
+std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<double>& y,
+                                   const std::vector<HeldParams>& held,
+                                   const RenderedNoise& rendered, const NoiseSums& sums,
+                                   double kappa, const std::vector<double>& logNStd) {
+    using L = BlockLayout<P>;
+    const UsedPixels& prep = objective.pixels();
+    const std::size_t materials = logNStd.size();
+    const double top = std::log(kMaxExponent);
+    std::vector<bool> climbing(materials, false);
+    for (std::size_t m = 0; m < materials; ++m)
+        climbing[m] =
+            !held[m].n && 3 * logNStd[m] > std::log(kSharperReach) && y[m * P + L::kLogN] < top;
+    if (std::none_of(climbing.begin(), climbing.end(), [](bool c) { return c; })) return {};
+    // Each rung's lobes: the climbing ones' n raised, the others' as estimated.
+    std::vector<std::vector<double>> rungs(kSharperRungs, y);
+    for (int rung = 0; rung < kSharperRungs; ++rung)
+        for (std::size_t m = 0; m < materials; ++m)
+            if (const std::size_t k = m * P + L::kLogN; climbing[m])
+                rungs[std::size_t(rung)][k] =
+                    std::min(y[k] + 3 * logNStd[m] + rung * std::log(kSharperRung), top);
+    const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(sums.noise.rows(), sums.noise.cols());
+    const RungNoise replayed = objective.sumPixels(
+        prep.seeingMaterial, RungNoise{std::vector<Eigen::MatrixXd>(kSharperRungs, zero)},
+        [&](std::size_t i, RungNoise& sum, typename Objective<P>::Scratch& scratch) {
+            const UsedPixel& u = prep.pixels[i];
+            std::array<Eigen::Vector3d, 2> r;
+            Eigen::Matrix3d covariance;
+            const Eigen::MatrixXd j = pixelTerms(objective, y.data(), u, scratch, r, covariance);
+            const std::vector<Eigen::Index>& indices = scratch.indices;
+            for (std::size_t k = 0; k < rungs.size(); ++k) {
+                covariance = 0.5 * (objective.pathCovariance(0, u, rungs[k].data(), scratch) +
+                                    objective.pathCovariance(1, u, rungs[k].data(), scratch));
+                sum.noise[k](indices, indices) += j.transpose() * covariance * j;
+            }
+        });
+    std::vector<double> reach(materials, 0.0);
+    for (std::size_t rung = 0; rung < rungs.size(); ++rung) {
+        if (std::none_of(climbing.begin(), climbing.end(), [](bool c) { return c; })) break;
+        std::vector<bool> sharpened(y.size(), false);
+        for (std::size_t m = 0; m < materials; ++m) sharpened[m * P + L::kLogN] = climbing[m];
+        const std::vector<double>& at = rungs[rung];
+        const std::vector<std::vector<double>> std = naturalStd<P>(
+            sums.gram,
+            kappa * replayed.noise[rung] + renderedNoiseSum(objective, y.data(), at.data(), sums,
+                                                            kappa, rendered, 0.0, sharpened),
+            held);
+        for (std::size_t m = 0; m < materials; ++m) {
+            if (!climbing[m]) continue;
+            const std::size_t k = m * P + L::kLogN;
+            const double distance = at[k] - y[k], s = std[m][L::kLogN];
+            if (3 * s >= distance) reach[m] = std::max(s, distance / 3);
+            climbing[m] = reach[m] == 0 && at[k] < top;
+        }
+    }
+    return reach;
 }
 
 }  // namespace
@@ -186,12 +281,11 @@ double noiseScale(std::vector<PixelNoise> pixels) {
 }
 
 template <int P>
-std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
-                                               const std::vector<double>& y,
-                                               const std::vector<HeldParams>& held,
-                                               const RenderedNoise& rendered) {
+ImageNoiseStd imageNoiseStd(Objective<P>& objective, const std::vector<double>& y,
+                            const std::vector<HeldParams>& held, const RenderedNoise& rendered,
+                            const std::vector<std::vector<double>>& roundStd) {
     // Exact recordings have no paths' variance to model the image's noise on.
-    if (objective.exact()) return noStd(int(held.size()), P);
+    if (objective.exact()) return {noStd(int(held.size()), P), {}};
     const UsedPixels& prep = objective.pixels();
     const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
     const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size),
@@ -213,9 +307,21 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
                          {j.col(c).squaredNorm(), std::uint32_t(i)});
         });
     const double kappa = noiseScale(std::move(noise));
-    Eigen::MatrixXd modelled = kappa * sums.noise;
-    if (rendered) modelled += renderedNoiseSum(objective, y.data(), sums, kappa, rendered);
-    return naturalStd<P>(sums.gram, modelled, held);
+    const Eigen::MatrixXd modelled = kappa * sums.noise;
+    if (!rendered) return {naturalStd<P>(sums.gram, modelled, held), {}};
+    ImageNoiseStd out{naturalStd<P>(sums.gram,
+                                    modelled + renderedNoiseSum(objective, y.data(), y.data(), sums,
+                                                                kappa, rendered, kHeldShare, {}),
+                                    held),
+                      {}};
+    std::vector<double> logNStd;  // per material: the larger of the image's and the round's
+    for (int m = 0; m < materialBlocks(objective); ++m)
+        logNStd.push_back(std::max(out.natural[std::size_t(m)][BlockLayout<P>::kLogN],
+                                   std::size_t(m) < roundStd.size()
+                                       ? roundStd[std::size_t(m)][BlockLayout<P>::kLogN]
+                                       : 0.0));
+    out.sharperLogN = sharperLogNStd(objective, y, held, rendered, sums, kappa, logNStd);
+    return out;
 }
 
 void applyImageNoise(MaterialFit& fit) {
@@ -227,13 +333,13 @@ void applyImageNoise(MaterialFit& fit) {
     }
 }
 
-template std::vector<std::vector<double>> imageNoiseStd<kRgbBlock>(Objective<kRgbBlock>&,
-                                                                   const std::vector<double>&,
-                                                                   const std::vector<HeldParams>&,
-                                                                   const RenderedNoise&);
-template std::vector<std::vector<double>> imageNoiseStd<kGreyBlock>(Objective<kGreyBlock>&,
-                                                                    const std::vector<double>&,
-                                                                    const std::vector<HeldParams>&,
-                                                                    const RenderedNoise&);
+template ImageNoiseStd imageNoiseStd<kRgbBlock>(Objective<kRgbBlock>&, const std::vector<double>&,
+                                                const std::vector<HeldParams>&,
+                                                const RenderedNoise&,
+                                                const std::vector<std::vector<double>>&);
+template ImageNoiseStd imageNoiseStd<kGreyBlock>(Objective<kGreyBlock>&, const std::vector<double>&,
+                                                 const std::vector<HeldParams>&,
+                                                 const RenderedNoise&,
+                                                 const std::vector<std::vector<double>>&);
 
 }  // namespace phongfit

@@ -49,16 +49,26 @@ inline constexpr double kModelledRecordingNoise = 0.25;
 // (docs/design/fitter.md, "The residuals split").
 double noiseScale(std::vector<PixelNoise> pixels);
 
+struct ImageNoiseStd {
+    // Per block, the natural parameters' standard errors.
+    std::vector<std::vector<double>> natural;
+    // Per material, the standard error s of log n whose 3 reach as far sharper as the image's
+    // noise there allows (0 where not taken, or where no sharper lobe's noise reaches back to the
+    // estimate; empty without `rendered`).
+    std::vector<double> sharperLogN;
+};
+
 // Per block, the natural parameters' standard errors at the flat natural coordinates `y` from the
 // image's modelled noise alone (least squares' sandwich over the pixels that see a material); 0
 // for `held` ones, where the image shows no noise beyond the model's, and for exact recordings.
 // With `rendered`, a pixel that holds a parameter (a share of its information no other pixel can
-// check) takes the noise rendered images have there where that is the larger.
+// check) takes the noise rendered images have there where that is the larger. A lobe known to a
+// factor 2 or worse (its image's standard error of log n, or `roundStd`'s, per block) has the
+// image's noise taken at sharper lobes too (sharperLogN).
 template <int P>
-std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
-                                               const std::vector<double>& y,
-                                               const std::vector<HeldParams>& held,
-                                               const RenderedNoise& rendered);
+ImageNoiseStd imageNoiseStd(Objective<P>& objective, const std::vector<double>& y,
+                            const std::vector<HeldParams>& held, const RenderedNoise& rendered,
+                            const std::vector<std::vector<double>>& roundStd = {});
 
 // Raises `fit`'s standard errors to its image-noise ones (n's through log n).
 void applyImageNoise(MaterialFit& fit);

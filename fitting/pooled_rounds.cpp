@@ -85,6 +85,8 @@ PooledRounds<P> pooled(const PooledRounds<P>& pool, const PooledRounds<P>& round
             most.kdImageStd = most.kdImageStd.cwiseMax(other.kdImageStd);
             most.ksImageStd = most.ksImageStd.cwiseMax(other.ksImageStd);
             most.logNImageStd = std::max(most.logNImageStd, other.logNImageStd);
+            most.logNSharperImageStd =
+                std::max(most.logNSharperImageStd, other.logNSharperImageStd);
         }
     }
     if (pool.imagePathFactor > round.pathFactor) {
@@ -137,6 +139,7 @@ void adoptPool(const PooledRounds<P>& pool, ParameterState<P>& params, RoundOutc
         fit.kdImageStd = image.kdImageStd;
         fit.ksImageStd = image.ksImageStd;
         fit.logNImageStd = image.logNImageStd;
+        fit.logNSharperImageStd = image.logNSharperImageStd;
         fit.unconstrained = out.materials[std::size_t(m)].unconstrained;
         out.materials[std::size_t(m)] = fit;
     }

@@ -65,8 +65,8 @@ void finishExponentUncertainty(MaterialFit& fit) {
     fit.nStd = std::max(fit.nStd, logNormalStd(fit.n, fit.logNStd));
     if (!fit.isUnconstrained("n") && !lobeHoldsExponent(fit)) fit.unconstrained.push_back("n");
     if (fit.isUnconstrained("n")) return;
-    fit.nStd =
-        std::max(fit.nStd, std::min(fit.n * std::expm1(3 * fit.logNStd), kMaxExponent - fit.n) / 3);
+    const double s = std::max(fit.logNStd, fit.logNSharperImageStd);
+    fit.nStd = std::max(fit.nStd, std::min(fit.n * std::expm1(3 * s), kMaxExponent - fit.n) / 3);
 }
 
 double logNormalStd(double n, double s) {

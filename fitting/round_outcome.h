@@ -47,7 +47,8 @@ bool lobeHoldsExponent(const MaterialFit& fit);
 // log-normal's standard deviation falls short of it, by a few percent where s is small and by
 // far where the images bound n from one side (n 2660 +- 7384, s 1.1, for a true 30000). s is the
 // fit's own (logNStd), not one read back from nStd, whose widenings in n (a drift, a probe's
-// reach) are reaches already.
+// reach) are reaches already; or logNSharperImageStd where that is larger (the image's noise
+// where the lobe is sharper).
 void finishExponentUncertainty(MaterialFit& fit);
 
 // Material block `m` at `params`' point, with standard errors `stdNatural` (its natural ones)

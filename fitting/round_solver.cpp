@@ -96,17 +96,19 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out, const FreeExponents* free) 
     // held through the image noise's sums.
     instruments_ = {};
     out.materials.clear();
-    const std::vector<std::vector<double>> imageNoise =
+    const ImageNoiseStd imageNoise =
         // The first round, recorded at the start, is judged by the tolerance alone: its
         // estimate's pixels are not rendered anew.
         imageNoiseStd(objective_, at_.y, params_.held(),
-                      firstRound_ ? RenderedNoise{} : options_.renderedNoise);
+                      firstRound_ ? RenderedNoise{} : options_.renderedNoise, out.naturalStd);
     for (int m = 0; m < params_.materialCount(); ++m) {
         MaterialFit& fit = out.materials.emplace_back(materialFit(params_, m, out.naturalStd[m]));
-        const MaterialFit image = materialFit(params_, m, imageNoise[m]);
+        const MaterialFit image = materialFit(params_, m, imageNoise.natural[m]);
         fit.kdImageStd = image.kdStd;
         fit.ksImageStd = image.ksStd;
         fit.logNImageStd = image.logNStd;
+        if (std::size_t(m) < imageNoise.sharperLogN.size())
+            fit.logNSharperImageStd = imageNoise.sharperLogN[std::size_t(m)];
     }
     const ExposureBlock& exposure = params_.exposure();
     if (exposure.fitted()) out.exposure = exposureFit(params_, out.naturalStd[exposure.slot()]);

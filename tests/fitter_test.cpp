@@ -413,6 +413,25 @@ TEST(Resolution, AnExponentBoundOnlyFromBelowReachesLogNsUpperEnd) {
     EXPECT_EQ(fit.nStd, 180);
 }
 
+// The Cornell box under a point light at 128 x 128, Gaussian-filtered, n 15977 (ks 0.396), its
+// image of 256 paths a pixel: the fit ends at n 1132 with s 0.61 from the image's noise, which
+// reaches 7000 at 3 standard errors. Where the lobe is that much sharper its highlight, narrower
+// than a pixel, is far noisier in such an image, and log n's standard error there is 1.68: n's
+// reach is 3 of those, past the truth. A smaller one leaves the reach to s.
+TEST(Resolution, AnExponentReachesAsFarAsTheImagesNoiseWhereTheLobeIsSharper) {
+    MaterialFit fit = greyLobeFit(0.398, 0.016, 0.459, 0.042, 1131.9, 0.61);
+    EXPECT_GT(15977 - fit.n, fit.n * std::expm1(3 * 0.61));
+    fit.logNSharperImageStd = 1.68;
+    finishExponentUncertainty(fit);
+    EXPECT_NEAR(fit.nStd, fit.n * std::expm1(3 * 1.68) / 3, 1e-9 * fit.nStd);
+    EXPECT_LT(15977 - fit.n, 3 * fit.nStd);
+    EXPECT_TRUE(fit.unconstrained.empty());
+    MaterialFit narrower = greyLobeFit(0.398, 0.016, 0.459, 0.042, 1131.9, 0.61);
+    narrower.logNSharperImageStd = 0.3;
+    finishExponentUncertainty(narrower);
+    EXPECT_NEAR(narrower.nStd, narrower.n * std::expm1(3 * 0.61) / 3, 1e-9 * narrower.nStd);
+}
+
 // A resolved n's uncertainty is log-normal too, and its standard deviation falls short of log n's
 // 3 standard errors on the sharp side: n 2000 with s 0.5 gives 2000 +- 1208, short of 8000 (2.77
 // s away in log n) by 5 of those. Every n a lobe holds reaches n e^(3 s): 3% beyond n s at s 0.02.

@@ -31,7 +31,8 @@ nlohmann::json materialsJson(const std::vector<MaterialFit>& materials,
                        {"image_noise_std",
                         {{"kd", colorJson(m.kdImageStd)},
                          {"ks", colorJson(m.ksImageStd)},
-                         {"n", m.n * m.logNImageStd}}},
+                         {"n", m.n * m.logNImageStd},
+                         {"log_n_sharper", m.logNSharperImageStd}}},
                        {"unconstrained", m.unconstrained}};
     }
     return out;

@@ -373,13 +373,17 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
         return v.renderer->record(o).paths;
     };
     FitOptions o = options;
-    o.renderedNoise = [&](int view, const std::vector<std::uint32_t>& pixels,
-                          const std::vector<PhongMaterial>& theta) {
-        const SceneView& v = problem.views[std::size_t(view)];
-        const int spp = imageSpp(v, recording);
-        if (spp <= 0) return std::vector<Eigen::Matrix3d>{};
-        return renderedNoise(v, windows[std::size_t(view)], spp, recording, pixels, theta);
-    };
+    // Images without noise (closed forms, --image-spp 0) are not rendered anew, nor is their noise
+    // taken where a lobe is sharper.
+    if (std::any_of(problem.views.begin(), problem.views.end(),
+                    [&](const SceneView& v) { return imageSpp(v, recording) > 0; }))
+        o.renderedNoise = [&](int view, const std::vector<std::uint32_t>& pixels,
+                              const std::vector<PhongMaterial>& theta) {
+            const SceneView& v = problem.views[std::size_t(view)];
+            const int spp = imageSpp(v, recording);
+            if (spp <= 0) return std::vector<Eigen::Matrix3d>{};
+            return renderedNoise(v, windows[std::size_t(view)], spp, recording, pixels, theta);
+        };
     o.recordingFollowsEstimate = !std::all_of(problem.views.begin(), problem.views.end(),
                                               [](const SceneView& v) { return v.deltaLightsOnly; });
     o.extendedLights = !std::all_of(problem.views.begin(), problem.views.end(),
