@@ -64,8 +64,9 @@ struct MaterialFit {
     // reports at least these (kd, ks and log n); its rounds keep them apart.
     Color3 kdImageStd = Color3::Zero(), ksImageStd = Color3::Zero();
     double logNImageStd = 0;
-    // log n's where the lobe is 3 of logNImageStd sharper, the pixels that hold a parameter
-    // rendered there: n's upper reach is at least 3 of these (finishExponentUncertainty).
+    // The standard error s of log n whose 3 reach as far sharper as the image's noise there
+    // allows (sharperLogNStd; taken in rounds whose estimate may end the fit): n's upper reach is
+    // at least n e^(3 s) (finishExponentUncertainty).
     double logNSharperImageStd = 0;
     // "kd", "ks", "n", or per channel "kd.r", "ks.b", ... when only some channels are
     // unconstrained.

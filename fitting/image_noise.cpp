@@ -26,8 +26,8 @@ constexpr std::size_t kRenderedPixels = 4;
 constexpr std::size_t kHolders = 8;
 
 // A lobe whose n is known to this factor or worse (3 standard errors of log n) has the image's
-// noise taken where it is sharper too: at most kSharperRungs lobes, each kSharperRung sharper than
-// the last (sharperLogNStd).
+// noise taken where it is sharper too: at up to kSharperRungs lobes, each kSharperRung sharper
+// than the last (sharperLogNStd).
 constexpr double kSharperReach = 2;
 constexpr int kSharperRungs = 4;
 constexpr double kSharperRung = 4;
@@ -176,30 +176,18 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
     return added;
 }
 
-// Per material, how far the image's noise reaches on the sharp side of a lobe known to
-// kSharperReach or worse (`logNStd`, per material): from the sharp end of 3 of its standard
-// errors, rung after rung kSharperRung sharper (at most kSharperRungs, up to kMaxExponent), log n's
-// standard error from the image's noise there (modelled from the paths replayed there, and the
-// pixels that hold most of n's information rendered there) through the estimate's sensitivities.
-// The first rung whose 3 standard errors reach back to the estimate is as sharp as the images
-// allow; the result is the s whose 3 reach from n to it, or its own if larger (0: no rung
-// reached back). A narrower highlight is noisier in an image of few samples, and one narrower than
-// a pixel far noisier (docs/design/fitter.md, "A sharper lobe's noisier image").
-// Per rung, J^T C J summed over the pixels: C a path's covariance replayed at the rung's lobes.
-struct RungNoise {
-    std::vector<Eigen::MatrixXd> noise;
-
-    RungNoise& operator+=(const RungNoise& other) {
-        for (std::size_t k = 0; k < noise.size(); ++k) noise[k] += other.noise[k];
-        return *this;
-    }
-};
-
+// sharperLogNStd from the sums and kappa at the estimate. Each lobe known to kSharperReach or
+// worse is taken sharper than the sharp end of its 3 standard errors by kSharperRung^k, k = 0 ..
+// kSharperRungs - 1 (at most kMaxExponent): J^T C J with C a path's covariance replayed there,
+// and the pixels holding most of n's information rendered there. The sharpest first: where its
+// noise does not reach back to the estimate, no rung's is taken as reaching (a narrower highlight
+// is the noisier); where it does, the first rung that reaches back from the estimate's side says
+// how far.
 template <int P>
-std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<double>& y,
-                                   const std::vector<HeldParams>& held,
-                                   const RenderedNoise& rendered, const NoiseSums& sums,
-                                   double kappa, const std::vector<double>& logNStd) {
+std::vector<double> sharperReach(Objective<P>& objective, const std::vector<double>& y,
+                                 const std::vector<HeldParams>& held, const RenderedNoise& rendered,
+                                 const NoiseSums& sums, double kappa,
+                                 const std::vector<double>& logNStd) {
     using L = BlockLayout<P>;
     const UsedPixels& prep = objective.pixels();
     const std::size_t materials = logNStd.size();
@@ -208,49 +196,86 @@ std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<do
     for (std::size_t m = 0; m < materials; ++m)
         climbing[m] =
             !held[m].n && 3 * logNStd[m] > std::log(kSharperReach) && y[m * P + L::kLogN] < top;
-    if (std::none_of(climbing.begin(), climbing.end(), [](bool c) { return c; })) return {};
-    // Each rung's lobes: the climbing ones' n raised, the others' as estimated.
-    std::vector<std::vector<double>> rungs(kSharperRungs, y);
-    for (int rung = 0; rung < kSharperRungs; ++rung)
-        for (std::size_t m = 0; m < materials; ++m)
-            if (const std::size_t k = m * P + L::kLogN; climbing[m])
-                rungs[std::size_t(rung)][k] =
-                    std::min(y[k] + 3 * logNStd[m] + rung * std::log(kSharperRung), top);
-    const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(sums.noise.rows(), sums.noise.cols());
-    const RungNoise replayed = objective.sumPixels(
-        prep.seeingMaterial, RungNoise{std::vector<Eigen::MatrixXd>(kSharperRungs, zero)},
-        [&](std::size_t i, RungNoise& sum, typename Objective<P>::Scratch& scratch) {
-            const UsedPixel& u = prep.pixels[i];
-            std::array<Eigen::Vector3d, 2> r;
-            Eigen::Matrix3d covariance;
-            const Eigen::MatrixXd j = pixelTerms(objective, y.data(), u, scratch, r, covariance);
-            const std::vector<Eigen::Index>& indices = scratch.indices;
-            for (std::size_t k = 0; k < rungs.size(); ++k) {
-                covariance = 0.5 * (objective.pathCovariance(0, u, rungs[k].data(), scratch) +
-                                    objective.pathCovariance(1, u, rungs[k].data(), scratch));
-                sum.noise[k](indices, indices) += j.transpose() * covariance * j;
-            }
-        });
     std::vector<double> reach(materials, 0.0);
-    for (std::size_t rung = 0; rung < rungs.size(); ++rung) {
-        if (std::none_of(climbing.begin(), climbing.end(), [](bool c) { return c; })) break;
+    // Whether the climbing lobes' noise at rung `k` reaches back, each: into `reach`.
+    const auto reachesBack = [&](int k) {
+        std::vector<double> at = y;
         std::vector<bool> sharpened(y.size(), false);
-        for (std::size_t m = 0; m < materials; ++m) sharpened[m * P + L::kLogN] = climbing[m];
-        const std::vector<double>& at = rungs[rung];
-        const std::vector<std::vector<double>> std = naturalStd<P>(
-            sums.gram,
-            kappa * replayed.noise[rung] + renderedNoiseSum(objective, y.data(), at.data(), sums,
-                                                            kappa, rendered, 0.0, sharpened),
-            held);
         for (std::size_t m = 0; m < materials; ++m) {
             if (!climbing[m]) continue;
-            const std::size_t k = m * P + L::kLogN;
-            const double distance = at[k] - y[k], s = std[m][L::kLogN];
-            if (3 * s >= distance) reach[m] = std::max(s, distance / 3);
-            climbing[m] = reach[m] == 0 && at[k] < top;
+            const std::size_t i = m * P + L::kLogN;
+            at[i] = std::min(y[i] + 3 * logNStd[m] + k * std::log(kSharperRung), top);
+            sharpened[i] = true;
         }
+        const Eigen::MatrixXd replayed = objective.sumPixels(
+            prep.seeingMaterial,
+            Eigen::MatrixXd(Eigen::MatrixXd::Zero(sums.noise.rows(), sums.noise.cols())),
+            [&](std::size_t i, Eigen::MatrixXd& sum, typename Objective<P>::Scratch& scratch) {
+                const UsedPixel& u = prep.pixels[i];
+                std::array<Eigen::Vector3d, 2> r;
+                Eigen::Matrix3d covariance;
+                const Eigen::MatrixXd j =
+                    pixelTerms(objective, y.data(), u, scratch, r, covariance);
+                covariance = 0.5 * (objective.pathCovariance(0, u, at.data(), scratch) +
+                                    objective.pathCovariance(1, u, at.data(), scratch));
+                const std::vector<Eigen::Index>& indices = scratch.indices;
+                sum(indices, indices) += j.transpose() * covariance * j;
+            });
+        const std::vector<std::vector<double>> std =
+            naturalStd<P>(sums.gram,
+                          kappa * replayed + renderedNoiseSum(objective, y.data(), at.data(), sums,
+                                                              kappa, rendered, 0.0, sharpened),
+                          held);
+        std::vector<bool> back(materials, false);
+        for (std::size_t m = 0; m < materials; ++m) {
+            const std::size_t i = m * P + L::kLogN;
+            const double distance = at[i] - y[i], s = std[m][L::kLogN];
+            back[m] = climbing[m] && 3 * s >= distance;
+            if (back[m]) reach[m] = std::max(s, distance / 3);
+        }
+        return back;
+    };
+    const auto any = [](const std::vector<bool>& v) {
+        return std::any_of(v.begin(), v.end(), [](bool b) { return b; });
+    };
+    if (!any(climbing)) return {};
+    climbing = reachesBack(kSharperRungs - 1);
+    for (int k = 0; k + 1 < kSharperRungs && any(climbing); ++k) {
+        const std::vector<bool> back = reachesBack(k);
+        for (std::size_t m = 0; m < materials; ++m) climbing[m] = climbing[m] && !back[m];
     }
     return reach;
+}
+
+// The sums over the pixels at `y` and kappa (noiseScale) read from them.
+struct NoiseModel {
+    NoiseSums sums;
+    double kappa = 0;
+};
+
+template <int P>
+NoiseModel noiseModel(Objective<P>& objective, const std::vector<double>& y) {
+    const UsedPixels& prep = objective.pixels();
+    const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
+    const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size),
+                         std::vector<std::vector<Holder>>(std::size_t(size))};
+    std::vector<PixelNoise> noise(prep.seeingMaterial);
+    NoiseSums sums = objective.sumPixels(
+        prep.seeingMaterial, zero,
+        [&](std::size_t i, NoiseSums& sum, typename Objective<P>::Scratch& scratch) {
+            std::array<Eigen::Vector3d, 2> r;
+            Eigen::Matrix3d covariance;
+            const Eigen::MatrixXd j =
+                pixelTerms(objective, y.data(), prep.pixels[i], scratch, r, covariance);
+            noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), covariance.trace()};
+            const std::vector<Eigen::Index>& indices = scratch.indices;
+            sum.gram(indices, indices) += j.transpose() * j;
+            sum.noise(indices, indices) += j.transpose() * covariance * j;
+            for (Eigen::Index c = 0; c < j.cols(); ++c)
+                sum.keep(std::size_t(indices[std::size_t(c)]),
+                         {j.col(c).squaredNorm(), std::uint32_t(i)});
+        });
+    return {std::move(sums), noiseScale(std::move(noise))};
 }
 
 }  // namespace
@@ -281,47 +306,28 @@ double noiseScale(std::vector<PixelNoise> pixels) {
 }
 
 template <int P>
-ImageNoiseStd imageNoiseStd(Objective<P>& objective, const std::vector<double>& y,
-                            const std::vector<HeldParams>& held, const RenderedNoise& rendered,
-                            const std::vector<std::vector<double>>& roundStd) {
+std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
+                                               const std::vector<double>& y,
+                                               const std::vector<HeldParams>& held,
+                                               const RenderedNoise& rendered) {
     // Exact recordings have no paths' variance to model the image's noise on.
-    if (objective.exact()) return {noStd(int(held.size()), P), {}};
-    const UsedPixels& prep = objective.pixels();
-    const Eigen::Index size = Eigen::Index(objective.blocks()) * P;
-    const NoiseSums zero{Eigen::MatrixXd::Zero(size, size), Eigen::MatrixXd::Zero(size, size),
-                         std::vector<std::vector<Holder>>(std::size_t(size))};
-    std::vector<PixelNoise> noise(prep.seeingMaterial);
-    const NoiseSums sums = objective.sumPixels(
-        prep.seeingMaterial, zero,
-        [&](std::size_t i, NoiseSums& sum, typename Objective<P>::Scratch& scratch) {
-            std::array<Eigen::Vector3d, 2> r;
-            Eigen::Matrix3d covariance;
-            const Eigen::MatrixXd j =
-                pixelTerms(objective, y.data(), prep.pixels[i], scratch, r, covariance);
-            noise[i] = {r[0].dot(r[1]), 0.25 * (r[0] - r[1]).squaredNorm(), covariance.trace()};
-            const std::vector<Eigen::Index>& indices = scratch.indices;
-            sum.gram(indices, indices) += j.transpose() * j;
-            sum.noise(indices, indices) += j.transpose() * covariance * j;
-            for (Eigen::Index c = 0; c < j.cols(); ++c)
-                sum.keep(std::size_t(indices[std::size_t(c)]),
-                         {j.col(c).squaredNorm(), std::uint32_t(i)});
-        });
-    const double kappa = noiseScale(std::move(noise));
-    const Eigen::MatrixXd modelled = kappa * sums.noise;
-    if (!rendered) return {naturalStd<P>(sums.gram, modelled, held), {}};
-    ImageNoiseStd out{naturalStd<P>(sums.gram,
-                                    modelled + renderedNoiseSum(objective, y.data(), y.data(), sums,
-                                                                kappa, rendered, kHeldShare, {}),
-                                    held),
-                      {}};
-    std::vector<double> logNStd;  // per material: the larger of the image's and the round's
-    for (int m = 0; m < materialBlocks(objective); ++m)
-        logNStd.push_back(std::max(out.natural[std::size_t(m)][BlockLayout<P>::kLogN],
-                                   std::size_t(m) < roundStd.size()
-                                       ? roundStd[std::size_t(m)][BlockLayout<P>::kLogN]
-                                       : 0.0));
-    out.sharperLogN = sharperLogNStd(objective, y, held, rendered, sums, kappa, logNStd);
-    return out;
+    if (objective.exact()) return noStd(int(held.size()), P);
+    const NoiseModel model = noiseModel(objective, y);
+    Eigen::MatrixXd modelled = model.kappa * model.sums.noise;
+    if (rendered)
+        modelled += renderedNoiseSum(objective, y.data(), y.data(), model.sums, model.kappa,
+                                     rendered, kHeldShare, {});
+    return naturalStd<P>(model.sums.gram, modelled, held);
+}
+
+template <int P>
+std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<double>& y,
+                                   const std::vector<HeldParams>& held,
+                                   const RenderedNoise& rendered,
+                                   const std::vector<double>& logNStd) {
+    if (objective.exact() || !rendered) return {};
+    const NoiseModel model = noiseModel(objective, y);
+    return sharperReach(objective, y, held, rendered, model.sums, model.kappa, logNStd);
 }
 
 void applyImageNoise(MaterialFit& fit) {
@@ -333,13 +339,23 @@ void applyImageNoise(MaterialFit& fit) {
     }
 }
 
-template ImageNoiseStd imageNoiseStd<kRgbBlock>(Objective<kRgbBlock>&, const std::vector<double>&,
-                                                const std::vector<HeldParams>&,
-                                                const RenderedNoise&,
-                                                const std::vector<std::vector<double>>&);
-template ImageNoiseStd imageNoiseStd<kGreyBlock>(Objective<kGreyBlock>&, const std::vector<double>&,
-                                                 const std::vector<HeldParams>&,
-                                                 const RenderedNoise&,
-                                                 const std::vector<std::vector<double>>&);
+template std::vector<std::vector<double>> imageNoiseStd<kRgbBlock>(Objective<kRgbBlock>&,
+                                                                   const std::vector<double>&,
+                                                                   const std::vector<HeldParams>&,
+                                                                   const RenderedNoise&);
+template std::vector<std::vector<double>> imageNoiseStd<kGreyBlock>(Objective<kGreyBlock>&,
+                                                                    const std::vector<double>&,
+                                                                    const std::vector<HeldParams>&,
+                                                                    const RenderedNoise&);
+template std::vector<double> sharperLogNStd<kRgbBlock>(Objective<kRgbBlock>&,
+                                                       const std::vector<double>&,
+                                                       const std::vector<HeldParams>&,
+                                                       const RenderedNoise&,
+                                                       const std::vector<double>&);
+template std::vector<double> sharperLogNStd<kGreyBlock>(Objective<kGreyBlock>&,
+                                                        const std::vector<double>&,
+                                                        const std::vector<HeldParams>&,
+                                                        const RenderedNoise&,
+                                                        const std::vector<double>&);
 
 }  // namespace phongfit

@@ -49,26 +49,30 @@ inline constexpr double kModelledRecordingNoise = 0.25;
 // (docs/design/fitter.md, "The residuals split").
 double noiseScale(std::vector<PixelNoise> pixels);
 
-struct ImageNoiseStd {
-    // Per block, the natural parameters' standard errors.
-    std::vector<std::vector<double>> natural;
-    // Per material, the standard error s of log n whose 3 reach as far sharper as the image's
-    // noise there allows (0 where not taken, or where no sharper lobe's noise reaches back to the
-    // estimate; empty without `rendered`).
-    std::vector<double> sharperLogN;
-};
-
 // Per block, the natural parameters' standard errors at the flat natural coordinates `y` from the
 // image's modelled noise alone (least squares' sandwich over the pixels that see a material); 0
 // for `held` ones, where the image shows no noise beyond the model's, and for exact recordings.
 // With `rendered`, a pixel that holds a parameter (a share of its information no other pixel can
-// check) takes the noise rendered images have there where that is the larger. A lobe known to a
-// factor 2 or worse (its image's standard error of log n, or `roundStd`'s, per block) has the
-// image's noise taken at sharper lobes too (sharperLogN).
+// check) takes the noise rendered images have there where that is the larger.
 template <int P>
-ImageNoiseStd imageNoiseStd(Objective<P>& objective, const std::vector<double>& y,
-                            const std::vector<HeldParams>& held, const RenderedNoise& rendered,
-                            const std::vector<std::vector<double>>& roundStd = {});
+std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
+                                               const std::vector<double>& y,
+                                               const std::vector<HeldParams>& held,
+                                               const RenderedNoise& rendered);
+
+// Per material, how far the image's noise reaches on the sharp side of a lobe known to a factor
+// 2 or worse (3 of `logNStd`, per material, its standard error of log n): taken 64 times sharper
+// than the sharp end of 3 standard errors (the paths replayed there, the pixels holding most of
+// n's information rendered there, through the estimate's sensitivities), where a highlight is
+// narrower and may be far noisier in the image; if 3 of the standard errors of log n there reach
+// back to the estimate, the s whose 3 reach from n to that lobe, or that standard error if larger
+// (else 0; empty for exact recordings or without `rendered`). docs/design/fitter.md, "A sharper
+// lobe's noisier image".
+template <int P>
+std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<double>& y,
+                                   const std::vector<HeldParams>& held,
+                                   const RenderedNoise& rendered,
+                                   const std::vector<double>& logNStd);
 
 // Raises `fit`'s standard errors to its image-noise ones (n's through log n).
 void applyImageNoise(MaterialFit& fit);

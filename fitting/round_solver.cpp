@@ -67,6 +67,18 @@ bool RoundSolver<P>::confirmLobes(RoundOutcome& out,
 }
 
 template <int P>
+void RoundSolver<P>::takeSharperNoise(RoundOutcome& out) {
+    if (firstRound_) return;
+    std::vector<double> logNStd;
+    for (const MaterialFit& m : out.materials)
+        logNStd.push_back(std::max(m.logNStd, m.logNImageStd));
+    const std::vector<double> sharper =
+        sharperLogNStd(objective_, at_.y, params_.held(), options_.renderedNoise, logNStd);
+    for (std::size_t m = 0; m < sharper.size() && m < out.materials.size(); ++m)
+        out.materials[m].logNSharperImageStd = sharper[m];
+}
+
+template <int P>
 double RoundSolver<P>::crossSquares(const ParameterState<P>& at, double squares) {
     if (!instrumental_) return squares;
     const std::vector<double> y = at.naturalCoordinates();
@@ -96,19 +108,17 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out, const FreeExponents* free) 
     // held through the image noise's sums.
     instruments_ = {};
     out.materials.clear();
-    const ImageNoiseStd imageNoise =
+    const std::vector<std::vector<double>> imageNoise =
         // The first round, recorded at the start, is judged by the tolerance alone: its
         // estimate's pixels are not rendered anew.
         imageNoiseStd(objective_, at_.y, params_.held(),
-                      firstRound_ ? RenderedNoise{} : options_.renderedNoise, out.naturalStd);
+                      firstRound_ ? RenderedNoise{} : options_.renderedNoise);
     for (int m = 0; m < params_.materialCount(); ++m) {
         MaterialFit& fit = out.materials.emplace_back(materialFit(params_, m, out.naturalStd[m]));
-        const MaterialFit image = materialFit(params_, m, imageNoise.natural[m]);
+        const MaterialFit image = materialFit(params_, m, imageNoise[m]);
         fit.kdImageStd = image.kdStd;
         fit.ksImageStd = image.ksStd;
         fit.logNImageStd = image.logNStd;
-        if (std::size_t(m) < imageNoise.sharperLogN.size())
-            fit.logNSharperImageStd = imageNoise.sharperLogN[std::size_t(m)];
     }
     const ExposureBlock& exposure = params_.exposure();
     if (exposure.fitted()) out.exposure = exposureFit(params_, out.naturalStd[exposure.slot()]);

@@ -38,6 +38,11 @@ public:
     bool confirmLobes(RoundOutcome& out,
                       const std::vector<std::vector<double>>* ksStdFloor = nullptr);
 
+    // For a round whose estimate may end the fit (recorded at an estimate, not the first): each
+    // lobe's log n standard error from the image's noise where it is sharper (sharperLogNStd),
+    // into `out`'s materials. Taken only there: it renders and replays at up to four sharper lobes.
+    void takeSharperNoise(RoundOutcome& out);
+
 private:
     // A solution with its exponents free: the parameters and their standard errors.
     struct FreeExponents {

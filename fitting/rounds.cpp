@@ -427,6 +427,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
                       : ksScatterFloor<P>(roundScatter(result.rounds, &out.materials),
                                           params.materialCount());
             solver->confirmLobes(out, ksFloor.empty() ? nullptr : &ksFloor);
+            if (!exact) solver->takeSharperNoise(out);
         }
         solver.reset();
         malloc_trim(0);  // the solver's many small blocks leave the resident set
