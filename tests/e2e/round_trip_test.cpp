@@ -86,6 +86,17 @@ protected:
         return report;
     }
 
+    // fit.json of `view` (scene:image) fitted as scripts/random_round_trips.py fits: from kd and ks
+    // 0.3 and n 100 times broader than `truth`'s, with `truth`'s defines, at recording seed 0.
+    nlohmann::json fitFromFar(const std::string& view,
+                              const std::map<std::string, std::string>& truth) {
+        const std::string start = fmt::format("{:.6g}", std::stod(truth.at("n")) / 100);
+        std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", start};
+        const auto d = defines(truth);
+        extra.insert(extra.end(), d.begin(), d.end());
+        return fit({view}, extra, "fit", 0);
+    }
+
     // The recovery matrix's sphere under the 40-degree light (its radius 2.418 at the scene's
     // distance) at 128 x 128 with n 30000 (or `n`): the view of its image rendered at `spp` and the
     // fit's arguments from kd, ks 0.3 and n 100 times broader.
@@ -229,10 +240,7 @@ TEST_F(RoundTrip, ALobeLostToTheBoundIsRecordedAgainWhereItWasSeen) {
         {"width", "64"}, {"height", "64"}, {"kd", "0.843"},  {"ks", "0.0773"},
         {"n", "139.2"},  {"spp", "256"},   {"maxDepth", "5"}};
     const std::string image = render(scene, truth, "lost", 256, "0");
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "1.392"};
-    const auto d = defines(truth);
-    extra.insert(extra.end(), d.begin(), d.end());
-    const auto m = fit({scene + ":" + image}, extra, "fit", 0)["materials"]["sphere"];
+    const auto m = fitFromFar(scene + ":" + image, truth)["materials"]["sphere"];
     EXPECT_TRUE(m["unconstrained"].empty()) << m["unconstrained"];
     expectCovered(m, {0.843, 0.843, 0.843}, {0.0773, 0.0773, 0.0773}, 139.2, "lost lobe");
 }
@@ -250,10 +258,7 @@ TEST_F(RoundTrip, ASubPixelHighlightsNoiseWhereTheLobeIsSharperReachesIt) {
         {"width", "128"}, {"height", "128"}, {"kd", "0.427669"}, {"ks", "0.39574"},
         {"n", "15977.2"}, {"spp", "256"},    {"maxDepth", "5"}};
     const std::string image = render(scene, truth, "sharper", 256, "0");
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "159.772"};
-    const auto d = defines(truth);
-    extra.insert(extra.end(), d.begin(), d.end());
-    const auto m = fit({scene + ":" + image}, extra, "fit", 0)["materials"]["sphere"];
+    const auto m = fitFromFar(scene + ":" + image, truth)["materials"]["sphere"];
     EXPECT_GT(m["image_noise_std"]["log_n_sharper"].get<double>(), m["log_n_std"].get<double>());
     expectCovered(m, {0.427669, 0.427669, 0.427669}, {0.39574, 0.39574, 0.39574}, 15977.2,
                   "sharper lobe's noise");
@@ -272,10 +277,7 @@ TEST_F(RoundTrip, AProbePulledBroaderByItsFewPathsIsRecordedAgainWithTheRoundsPa
         {"maxDepth", "5"}};
     const std::string cornell = PHONGFIT_SCENES_DIR "/cornell_area.xml";
     const std::string image = render(cornell, truth, "pulled", 256, "0");
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "44.7537"};
-    const auto d = defines(truth);
-    extra.insert(extra.end(), d.begin(), d.end());
-    const auto report = fit({cornell + ":" + image}, extra, "fit", 0);
+    const auto report = fitFromFar(cornell + ":" + image, truth);
     const nlohmann::json& rounds = report["rounds"];
     EXPECT_GE(std::count_if(rounds.begin(), rounds.end(),
                             [](const nlohmann::json& r) { return r["probe"].get<bool>(); }),
@@ -300,10 +302,7 @@ TEST_F(RoundTrip, AFilterTheEdgesCannotTellIsFittedBothWays) {
         {"n", "2.69818"}, {"spp", "256"},   {"maxDepth", "5"}};
     const std::string image = render(tent, truth, "untold", 256, "0");
     fs::remove(image + ".json");
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "0.0269818"};
-    const auto d = defines(truth);
-    extra.insert(extra.end(), d.begin(), d.end());
-    const auto report = fit({unnamed + ":" + image}, extra, "fit", 0);
+    const auto report = fitFromFar(unnamed + ":" + image, truth);
     const nlohmann::json& filter = report["views"][0]["pixel_filter"];
     EXPECT_EQ(filter["also_fitted"]["type"], "gaussian") << filter;
     expectCovered(report["materials"]["sphere"], {0.334487, 0.334487, 0.334487},
@@ -321,10 +320,7 @@ TEST_F(RoundTrip, AShapelessLobeHeldWithItsExponentLeavesKdWhole) {
         {"width", "96"}, {"height", "96"}, {"kd", "0.175186,0.843822,0.362406"},
         {"ks", "0"},     {"n", "25.2376"}, {"spp", "1024"}};
     const std::string image = render(scene, truth, "shapeless", 1024, "0");
-    std::vector<std::string> extra = {"--kd", "0.3", "--ks", "0.3", "--n", "0.252376"};
-    const auto d = defines(truth);
-    extra.insert(extra.end(), d.begin(), d.end());
-    const auto m = fit({scene + ":" + image}, extra, "fit", 0)["materials"]["sphere"];
+    const auto m = fitFromFar(scene + ":" + image, truth)["materials"]["sphere"];
     const std::array<double, 3> kd = {0.175186, 0.843822, 0.362406};
     for (int c = 0; c < 3; ++c) {
         EXPECT_LT(std::abs(m["kd"][c].get<double>() - kd[c]), 3 * m["kd_std"][c].get<double>())
