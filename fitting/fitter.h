@@ -33,11 +33,18 @@ inline constexpr double kMaxExposure = 1e6 / kExposureCentre;
 
 enum class LossKind { L2, Huber, Cauchy };
 
-// The covariance over channels of each of `pixels` (indices into view `view`'s observation) in
-// images rendered as the observed one was (its scene's sampler and samples per pixel) with the
-// materials `theta`; empty where the observed images have no noise. What a pixel's noise is where
-// no other pixel can show it (image_noise.h).
-using RenderedNoise = std::function<std::vector<Eigen::Matrix3d>(
+// A pixel of images rendered as the observed one was (its scene's sampler and samples per pixel):
+// the mean over `renders` renders and the covariance over channels of one render.
+struct RenderedPixel {
+    Eigen::Vector3d mean;
+    Eigen::Matrix3d covariance;
+    int renders = 1;
+};
+
+// Each of `pixels` (indices into view `view`'s observation) rendered as the observed image was
+// with the materials `theta`; empty where the observed images have no noise. What a pixel's noise
+// is where no other pixel can show it, and what it is expected to be (image_noise.h).
+using RenderedNoise = std::function<std::vector<RenderedPixel>(
     int view, const std::vector<std::uint32_t>& pixels, const std::vector<PhongMaterial>& theta)>;
 
 enum class Estimator {

@@ -31,6 +31,9 @@ constexpr std::size_t kHolders = 8;
 constexpr double kSharperReach = 2;
 constexpr int kSharperRungs = 4;
 constexpr double kSharperRung = 4;
+// A sharper lobe whose renders fit the pixels holding n worse than the estimate's by this much (a
+// likelihood ratio's 3 standard errors) is ruled out by the image (imageReach).
+constexpr double kRuledOut = 9;
 
 // A pixel's share of a parameter's information (its term of J^T J's diagonal), and the pixel.
 struct Holder {
@@ -136,6 +139,15 @@ int materialBlocks(const Objective<P>& objective) {
     return exposure.fitted() ? exposure.slot() : objective.blocks();
 }
 
+// The materials at flat natural coordinates `at`.
+template <int P>
+std::vector<PhongMaterial> materialsAt(const Objective<P>& objective, const double* at) {
+    std::vector<PhongMaterial> theta;
+    for (int m = 0; m < materialBlocks(objective); ++m)
+        theta.push_back(naturalToPhong<P>(at + std::size_t(m) * P));
+    return theta;
+}
+
 // What the pixels that hold a parameter (heldPixels) add to the modelled noise sum (kappa times
 // `sums`'): their noise as rendered with the materials at `at` (flat natural coordinates), where it
 // is larger than the model's, which an image of stratified samples can be by far at a highlight
@@ -145,11 +157,8 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
                                  const NoiseSums& sums, double kappa, const RenderedNoise& rendered,
                                  double leastShare, const std::vector<bool>& only) {
     const UsedPixels& prep = objective.pixels();
-    const ExposureBlock& exposure = objective.exposure();
-    std::vector<PhongMaterial> theta;
-    for (int m = 0; m < materialBlocks(objective); ++m)
-        theta.push_back(naturalToPhong<P>(at + std::size_t(m) * P));
-    const double scale = exposure.value<P>(y);
+    const std::vector<PhongMaterial> theta = materialsAt(objective, at);
+    const double scale = objective.exposure().template value<P>(y);
     const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(sums.noise.rows(), sums.noise.cols());
     Eigen::MatrixXd added = zero;
     for (const auto& held : heldPixels(sums, prep, leastShare, only)) {
@@ -157,8 +166,8 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
         const std::vector<std::uint32_t>& pixels = held.second;  // a lambda captures it below
         std::vector<std::uint32_t> film;
         for (std::uint32_t i : pixels) film.push_back(prep.pixels[i].pixel);
-        const std::vector<Eigen::Matrix3d> covariances = rendered(int(view), film, theta);
-        if (covariances.size() != pixels.size()) continue;  // an image without noise
+        const std::vector<RenderedPixel> renders = rendered(int(view), film, theta);
+        if (renders.size() != pixels.size()) continue;  // an image without noise
         const auto raise = [&](std::size_t k, Eigen::MatrixXd& sum,
                                typename Objective<P>::Scratch& scratch) {
             const UsedPixel& u = prep.pixels[pixels[k]];
@@ -166,7 +175,7 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
             Eigen::Matrix3d covariance;
             const Eigen::MatrixXd j = pixelTerms(objective, y, u, scratch, r, covariance);
             const double w = objective.weight(u) * scale;
-            const Eigen::Matrix3d image = w * w * covariances[k];
+            const Eigen::Matrix3d image = w * w * renders[k].covariance;
             if (!(image.trace() > kappa * covariance.trace())) return;
             const std::vector<Eigen::Index>& indices = scratch.indices;
             sum(indices, indices) += j.transpose() * (image - kappa * covariance) * j;
@@ -176,13 +185,76 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
     return added;
 }
 
+// How far the image itself allows each `climbing` lobe on its sharp side (docs/design/fitter.md,
+// "A sharper lobe the image does not rule out"): the pixels that hold most of its n's
+// information, rendered as the image was at the estimate and at lobes kSharperRung^k beyond the
+// sharp end of 3 of `logNStd`, from the estimate's side, until one fits the image worse than the
+// estimate by kRuledOut: `reach` rises to the s whose 3 reach the last not ruled out. Lobes
+// `reach` already covers are not rendered. A pixel's misfit is its channels' sum's over the
+// larger of the two renders' variances, their means' own added: a narrower highlight is the
+// noisier, and the larger keeps a noise the renders underrate from ruling a lobe out.
+template <int P>
+void imageReach(Objective<P>& objective, const std::vector<double>& y,
+                const RenderedNoise& rendered, const NoiseSums& sums,
+                const std::vector<bool>& climbing, const std::vector<double>& logNStd,
+                std::vector<double>& reach) {
+    using L = BlockLayout<P>;
+    const UsedPixels& prep = objective.pixels();
+    const double top = std::log(kMaxExponent);
+    const double scale = objective.exposure().template value<P>(y.data());
+    for (std::size_t m = 0; m < climbing.size(); ++m) {
+        const std::size_t i = m * P + L::kLogN;
+        const auto rung = [&](int k) {
+            return std::min(y[i] + 3 * logNStd[m] + k * std::log(kSharperRung), top);
+        };
+        if (!climbing[m] || rung(kSharperRungs - 1) - y[i] <= 3 * reach[m]) continue;
+        std::vector<bool> only(sums.holders.size(), false);
+        only[i] = true;
+        const auto held = heldPixels(sums, prep, 0.0, only);
+        // Per held pixel, in view order: the scaled renders' channel sums and their variances.
+        const auto renderAt = [&](const std::vector<double>& at) {
+            std::vector<std::pair<double, double>> sumAndVariance;
+            for (const auto& [view, pixels] : held) {
+                std::vector<std::uint32_t> film;
+                for (std::uint32_t p : pixels) film.push_back(prep.pixels[p].pixel);
+                for (const RenderedPixel& r :
+                     rendered(int(view), film, materialsAt(objective, at.data())))
+                    sumAndVariance.emplace_back(
+                        scale * r.mean.sum(),
+                        scale * scale * r.covariance.sum() * (1 + 1.0 / r.renders));
+            }
+            return sumAndVariance;
+        };
+        std::vector<double> observed;
+        for (const auto& [view, pixels] : held)
+            for (std::uint32_t p : pixels)
+                observed.push_back(objective.observed(prep.pixels[p]).sum());
+        const auto estimate = renderAt(y);
+        if (estimate.size() != observed.size()) continue;  // an image without noise
+        std::vector<double> at = y;
+        for (int k = 0; k < kSharperRungs; ++k) {
+            if (k > 0 && rung(k) <= at[i]) break;
+            at[i] = rung(k);
+            if (at[i] - y[i] <= 3 * reach[m]) continue;
+            const auto sharper = renderAt(at);
+            double worse = 0;
+            for (std::size_t p = 0; p < observed.size(); ++p)
+                worse += (std::pow(observed[p] - sharper[p].first, 2) -
+                          std::pow(observed[p] - estimate[p].first, 2)) /
+                         std::max({sharper[p].second, estimate[p].second, 1e-300});
+            if (!(worse < kRuledOut)) break;
+            reach[m] = (at[i] - y[i]) / 3;
+        }
+    }
+}
+
 // sharperLogNStd from the sums and kappa at the estimate. Each lobe known to kSharperReach or
 // worse is taken sharper than the sharp end of its 3 standard errors by kSharperRung^k, k = 0 ..
 // kSharperRungs - 1 (at most kMaxExponent): J^T C J with C a path's covariance replayed there,
 // and the pixels holding most of n's information rendered there. The sharpest first: where its
 // noise does not reach back to the estimate, no rung's is taken as reaching (a narrower highlight
 // is the noisier); where it does, the first rung that reaches back from the estimate's side says
-// how far.
+// how far. The image itself may allow more (imageReach).
 template <int P>
 std::vector<double> sharperReach(Objective<P>& objective, const std::vector<double>& y,
                                  const std::vector<HeldParams>& held, const RenderedNoise& rendered,
@@ -239,11 +311,13 @@ std::vector<double> sharperReach(Objective<P>& objective, const std::vector<doub
         return std::any_of(v.begin(), v.end(), [](bool b) { return b; });
     };
     if (!any(climbing)) return {};
+    const std::vector<bool> climbed = climbing;
     climbing = reachesBack(kSharperRungs - 1);
     for (int k = 0; k + 1 < kSharperRungs && any(climbing); ++k) {
         const std::vector<bool> back = reachesBack(k);
         for (std::size_t m = 0; m < materials; ++m) climbing[m] = climbing[m] && !back[m];
     }
+    imageReach(objective, y, rendered, sums, climbed, logNStd, reach);
     return reach;
 }
 

@@ -65,9 +65,11 @@ std::vector<std::vector<double>> imageNoiseStd(Objective<P>& objective,
 // than the sharp end of 3 standard errors (the paths replayed there, the pixels holding most of
 // n's information rendered there, through the estimate's sensitivities), where a highlight is
 // narrower and may be far noisier in the image; if 3 of the standard errors of log n there reach
-// back to the estimate, the s whose 3 reach from n to that lobe, or that standard error if larger
-// (else 0; empty for exact recordings or without `rendered`). docs/design/fitter.md, "A sharper
-// lobe's noisier image".
+// back to the estimate, the s whose 3 reach from n to that lobe, or that standard error if larger;
+// at least the s whose 3 reach the sharpest such lobe the image does not rule out (its pixels
+// holding n rendered there fit it about as well as at the estimate); else 0; empty for exact
+// recordings or without `rendered`. docs/design/fitter.md, "A sharper lobe's noisier image", "A
+// sharper lobe the image does not rule out".
 template <int P>
 std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<double>& y,
                                    const std::vector<HeldParams>& held,

@@ -54,6 +54,9 @@ public:
     double weight(const UsedPixel& u) const {
         return pixelWeight((*observations_)[u.view], u.pixel);
     }
+    Color3 observed(const UsedPixel& u) const {
+        return pixelObserved((*observations_)[u.view], u.pixel);
+    }
     int blocks() const { return blocks_; }
     int setCount() const { return instrumental_ ? 2 : 1; }
     const ExposureBlock& exposure() const { return exposure_; }

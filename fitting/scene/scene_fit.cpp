@@ -224,20 +224,20 @@ int imageSpp(const SceneView& v, const SceneRecording& recording) {
 
 // FitOptions::renderedNoise for view `v` (its fit covering `window`): the listed pixels rendered
 // kNoiseRenders times at `spp` paths a pixel in the scene's sampler, each with its own seed, and
-// their values' covariance over the renders. Each is traced alone, in a window of its own, by the
-// view's renderer at `theta`: a pixel's value is its own samples' (a Gaussian filter is
+// their values' mean and covariance over the renders. Each is traced alone, in a window of its own,
+// by the view's renderer at `theta`: a pixel's value is its own samples' (a Gaussian filter is
 // importance-sampled, filmPosition), drawn from the seed and the pixel alone, and the fit's
 // memory bound leaves no room for a film or a scene of their own.
 constexpr int kNoiseRenders = 16;
 
-std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow& window, int spp,
-                                           const SceneRecording& recording,
-                                           const std::vector<std::uint32_t>& pixels,
-                                           const std::vector<PhongMaterial>& theta) {
+std::vector<RenderedPixel> renderedNoise(const SceneView& v, const FilmWindow& window, int spp,
+                                         const SceneRecording& recording,
+                                         const std::vector<std::uint32_t>& pixels,
+                                         const std::vector<PhongMaterial>& theta) {
     RenderOptions options = renderOptionsAt(v, theta, recording.threads);
     options.spp = spp;
     options.pixelSampler = v.renderedAs.pixelSampler;
-    std::vector<Eigen::Matrix3d> covariance;
+    std::vector<RenderedPixel> rendered;
     const auto width = std::uint32_t(window.width);
     for (std::uint32_t p : pixels) {
         options.window = {window.x0 + int(p % width), window.y0 + int(p / width), 1, 1};
@@ -250,10 +250,11 @@ std::vector<Eigen::Matrix3d> renderedNoise(const SceneView& v, const FilmWindow&
             sum += c;
             squares += c * c.transpose();
         }
-        covariance.push_back((squares - sum * sum.transpose() / kNoiseRenders) /
-                             (kNoiseRenders - 1));
+        rendered.push_back({sum / kNoiseRenders,
+                            (squares - sum * sum.transpose() / kNoiseRenders) / (kNoiseRenders - 1),
+                            kNoiseRenders});
     }
-    return covariance;
+    return rendered;
 }
 
 }  // namespace
@@ -381,7 +382,7 @@ FitResult fitScene(const SceneFitProblem& problem, const SceneRecording& recordi
                               const std::vector<PhongMaterial>& theta) {
             const SceneView& v = problem.views[std::size_t(view)];
             const int spp = imageSpp(v, recording);
-            if (spp <= 0) return std::vector<Eigen::Matrix3d>{};
+            if (spp <= 0) return std::vector<RenderedPixel>{};
             return renderedNoise(v, windows[std::size_t(view)], spp, recording, pixels, theta);
         };
     o.recordingFollowsEstimate = !std::all_of(problem.views.begin(), problem.views.end(),
