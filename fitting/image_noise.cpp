@@ -139,6 +139,23 @@ int materialBlocks(const Objective<P>& objective) {
     return exposure.fitted() ? exposure.slot() : objective.blocks();
 }
 
+// Log n of material m's lobe kSharperRung^k sharper than the sharp end of 3 of `logNStd` (at
+// most kMaxExponent): the rungs sharperReach and imageReach take.
+template <int P>
+double sharperRung(const std::vector<double>& y, std::size_t m, const std::vector<double>& logNStd,
+                   int k) {
+    return std::min(y[m * P + BlockLayout<P>::kLogN] + 3 * logNStd[m] + k * std::log(kSharperRung),
+                    std::log(kMaxExponent));
+}
+
+// The film pixels of used pixels `pixels` (indices into UsedPixels::pixels).
+std::vector<std::uint32_t> filmPixels(const UsedPixels& prep,
+                                      const std::vector<std::uint32_t>& pixels) {
+    std::vector<std::uint32_t> film;
+    for (std::uint32_t i : pixels) film.push_back(prep.pixels[i].pixel);
+    return film;
+}
+
 // The materials at flat natural coordinates `at`.
 template <int P>
 std::vector<PhongMaterial> materialsAt(const Objective<P>& objective, const double* at) {
@@ -164,9 +181,8 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
     for (const auto& held : heldPixels(sums, prep, leastShare, only)) {
         const std::uint32_t view = held.first;
         const std::vector<std::uint32_t>& pixels = held.second;  // a lambda captures it below
-        std::vector<std::uint32_t> film;
-        for (std::uint32_t i : pixels) film.push_back(prep.pixels[i].pixel);
-        const std::vector<RenderedPixel> renders = rendered(int(view), film, theta);
+        const std::vector<RenderedPixel> renders =
+            rendered(int(view), filmPixels(prep, pixels), theta);
         if (renders.size() != pixels.size()) continue;  // an image without noise
         const auto raise = [&](std::size_t k, Eigen::MatrixXd& sum,
                                typename Objective<P>::Scratch& scratch) {
@@ -200,13 +216,10 @@ void imageReach(Objective<P>& objective, const std::vector<double>& y,
                 std::vector<double>& reach) {
     using L = BlockLayout<P>;
     const UsedPixels& prep = objective.pixels();
-    const double top = std::log(kMaxExponent);
     const double scale = objective.exposure().template value<P>(y.data());
     for (std::size_t m = 0; m < climbing.size(); ++m) {
         const std::size_t i = m * P + L::kLogN;
-        const auto rung = [&](int k) {
-            return std::min(y[i] + 3 * logNStd[m] + k * std::log(kSharperRung), top);
-        };
+        const auto rung = [&](int k) { return sharperRung<P>(y, m, logNStd, k); };
         if (!climbing[m] || rung(kSharperRungs - 1) - y[i] <= 3 * reach[m]) continue;
         std::vector<bool> only(sums.holders.size(), false);
         only[i] = true;
@@ -215,10 +228,8 @@ void imageReach(Objective<P>& objective, const std::vector<double>& y,
         const auto renderAt = [&](const std::vector<double>& at) {
             std::vector<std::pair<double, double>> sumAndVariance;
             for (const auto& [view, pixels] : held) {
-                std::vector<std::uint32_t> film;
-                for (std::uint32_t p : pixels) film.push_back(prep.pixels[p].pixel);
-                for (const RenderedPixel& r :
-                     rendered(int(view), film, materialsAt(objective, at.data())))
+                for (const RenderedPixel& r : rendered(int(view), filmPixels(prep, pixels),
+                                                       materialsAt(objective, at.data())))
                     sumAndVariance.emplace_back(
                         scale * r.mean.sum(),
                         scale * scale * r.covariance.sum() * (1 + 1.0 / r.renders));
@@ -276,7 +287,7 @@ std::vector<double> sharperReach(Objective<P>& objective, const std::vector<doub
         for (std::size_t m = 0; m < materials; ++m) {
             if (!climbing[m]) continue;
             const std::size_t i = m * P + L::kLogN;
-            at[i] = std::min(y[i] + 3 * logNStd[m] + k * std::log(kSharperRung), top);
+            at[i] = sharperRung<P>(y, m, logNStd, k);
             sharpened[i] = true;
         }
         const Eigen::MatrixXd replayed = objective.sumPixels(
