@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "error.h"
+#include "phong_brdf.h"
 #include "scene_parser.h"
 #include "scene_xml.h"
 
@@ -175,7 +176,7 @@ GridSpec readGrid(const Reader& reader, const std::string& key, const json& v) {
             if (!m.contains(c)) reader.fail(fmt::format("missing key '{}.{}'", k, c));
         const GridSpec::Material material{reader.colour(k + ".kd", m.at("kd")),
                                           reader.colour(k + ".ks", m.at("ks"))};
-        if (((material.kd + material.ks).array() > 1).any())
+        if (((material.kd + material.ks).array() > 1 + kEnergySumSlack).any())
             reader.fail(k, m, "kd + ks must be at most 1 in every channel");
         grid.materials.push_back(material);
     }

@@ -7,8 +7,6 @@
 namespace phongfit {
 
 void validatePhong(const PhongMaterial& m, const std::string& what) {
-    // kd + ks = 1 exactly is allowed; a rounding error of a few ulps in the sum is not a violation.
-    constexpr double kSumSlack = 1e-9;
     static constexpr char kChannel[3] = {'R', 'G', 'B'};
     for (int c = 0; c < 3; ++c) {
         const double kd = m.kd[c], ks = m.ks[c];
@@ -22,7 +20,7 @@ void validatePhong(const PhongMaterial& m, const std::string& what) {
                 fmt::format("{}: specular reflectance ks = {} in channel {} is invalid "
                             "(allowed: finite, >= 0)",
                             what, ks, kChannel[c]));
-        if (kd + ks > 1 + kSumSlack)
+        if (kd + ks > 1 + kEnergySumSlack)
             throw Error(
                 fmt::format("{}: kd + ks = {} + {} = {} in channel {} exceeds 1 "
                             "(energy conservation needs kd + ks <= 1 per channel)",

@@ -29,8 +29,12 @@ struct PhongParams {
 };
 using PhongMaterial = PhongParams<double>;
 
+// How far kd + ks may exceed 1: the rounding of values written to 6 significant digits (printf's
+// %g: 0.942818 + 0.0571824 = 1.0000004), 1e-6 at most, twice that clear of the sum's own.
+constexpr double kEnergySumSlack = 2e-6;
+
 // Throws Error naming `what` (e.g. "bsdf 'ball' (scene.xml:12)") when a parameter is outside its
-// domain: kd, ks >= 0, kd + ks <= 1 per channel, n >= 0, all finite.
+// domain: kd, ks >= 0, kd + ks <= 1 (+ kEnergySumSlack) per channel, n >= 0, all finite.
 void validatePhong(const PhongMaterial& m, const std::string& what);
 
 // h = 1 - cos(alpha) = |r - wi|^2 / 2 with r the mirror of wo: precise for tiny alpha, where

@@ -542,5 +542,12 @@ TEST(PhongValidation, AcceptsTheBoundary) {
     EXPECT_NO_THROW(validatePhong(gray(0.5, 0.5, 1e6), "m"));
 }
 
+// A material on kd + ks = 1 written with 6 significant digits (printf's %g) sums to just above 1.
+TEST(PhongValidation, AcceptsASumOnTheBoundaryRoundedToSixDigits) {
+    EXPECT_NO_THROW(validatePhong(gray(0.942818, 0.0571824, 1), "m"));
+    EXPECT_NO_THROW(validatePhong(gray(0.500001, 0.500000, 1), "m"));
+    expectRejected(gray(0.500003, 0.5, 1), {"kd + ks", "0.500003", "<= 1"});
+}
+
 }  // namespace
 }  // namespace phongfit
