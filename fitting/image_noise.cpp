@@ -259,8 +259,23 @@ void imageReach(Objective<P>& objective, const std::vector<double>& y,
     }
 }
 
-// sharperLogNStd from the sums and kappa at the estimate. Each lobe known to kSharperReach or
-// worse is taken sharper than the sharp end of its 3 standard errors by kSharperRung^k, k = 0 ..
+bool anyOf(const std::vector<bool>& v) {
+    return std::any_of(v.begin(), v.end(), [](bool b) { return b; });
+}
+
+// The lobes sharperLogNStd takes: n free, known to kSharperReach or worse, below the bound.
+template <int P>
+std::vector<bool> climbingLobes(const std::vector<double>& y, const std::vector<HeldParams>& held,
+                                const std::vector<double>& logNStd) {
+    std::vector<bool> climbing(logNStd.size(), false);
+    for (std::size_t m = 0; m < logNStd.size(); ++m)
+        climbing[m] = !held[m].n && 3 * logNStd[m] > std::log(kSharperReach) &&
+                      y[m * P + BlockLayout<P>::kLogN] < std::log(kMaxExponent);
+    return climbing;
+}
+
+// sharperLogNStd from the sums and kappa at the estimate. Each `climbing` lobe (climbingLobes)
+// is taken sharper than the sharp end of its 3 standard errors by kSharperRung^k, k = 0 ..
 // kSharperRungs - 1 (at most kMaxExponent): J^T C J with C a path's covariance replayed there,
 // and the pixels holding most of n's information rendered there. The sharpest first: where its
 // noise does not reach back to the estimate, no rung's is taken as reaching (a narrower highlight
@@ -270,15 +285,10 @@ template <int P>
 std::vector<double> sharperReach(Objective<P>& objective, const std::vector<double>& y,
                                  const std::vector<HeldParams>& held, const RenderedNoise& rendered,
                                  const NoiseSums& sums, double kappa,
-                                 const std::vector<double>& logNStd) {
+                                 const std::vector<double>& logNStd, std::vector<bool> climbing) {
     using L = BlockLayout<P>;
     const UsedPixels& prep = objective.pixels();
     const std::size_t materials = logNStd.size();
-    const double top = std::log(kMaxExponent);
-    std::vector<bool> climbing(materials, false);
-    for (std::size_t m = 0; m < materials; ++m)
-        climbing[m] =
-            !held[m].n && 3 * logNStd[m] > std::log(kSharperReach) && y[m * P + L::kLogN] < top;
     std::vector<double> reach(materials, 0.0);
     // Whether the climbing lobes' noise at rung `k` reaches back, each: into `reach`.
     const auto reachesBack = [&](int k) {
@@ -318,13 +328,9 @@ std::vector<double> sharperReach(Objective<P>& objective, const std::vector<doub
         }
         return back;
     };
-    const auto any = [](const std::vector<bool>& v) {
-        return std::any_of(v.begin(), v.end(), [](bool b) { return b; });
-    };
-    if (!any(climbing)) return {};
     const std::vector<bool> climbed = climbing;
     climbing = reachesBack(kSharperRungs - 1);
-    for (int k = 0; k + 1 < kSharperRungs && any(climbing); ++k) {
+    for (int k = 0; k + 1 < kSharperRungs && anyOf(climbing); ++k) {
         const std::vector<bool> back = reachesBack(k);
         for (std::size_t m = 0; m < materials; ++m) climbing[m] = climbing[m] && !back[m];
     }
@@ -411,8 +417,11 @@ std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<do
                                    const RenderedNoise& rendered,
                                    const std::vector<double>& logNStd) {
     if (objective.exact() || !rendered) return {};
+    std::vector<bool> climbing = climbingLobes<P>(y, held, logNStd);
+    if (!anyOf(climbing)) return {};
     const NoiseModel model = noiseModel(objective, y);
-    return sharperReach(objective, y, held, rendered, model.sums, model.kappa, logNStd);
+    return sharperReach(objective, y, held, rendered, model.sums, model.kappa, logNStd,
+                        std::move(climbing));
 }
 
 void applyImageNoise(MaterialFit& fit) {
