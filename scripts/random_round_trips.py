@@ -2,7 +2,9 @@
 # Round trips at parameter sets drawn at random (README, "Round trips at random"): each case is
 # rendered by `phongfit render`, fitted back by `phongfit fit` from kd, ks 0.3 and n 100 times
 # broader, and printed with its largest deviation in standard errors; rows.json keeps them all.
-# Usage: scripts/random_round_trips.py PHONGFIT OUT_DIR [CASES [SEED]]
+# Usage: scripts/random_round_trips.py PHONGFIT OUT_DIR [CASES [SEED [SCENES]]]
+# SCENES (comma-separated, of the eight below) draws those alone, the other draws as with all, e.g.
+#   scripts/random_round_trips.py build/phongfit ra87 40 87 cornell_area
 import json, math, os, random, subprocess, sys
 B = sys.argv[1]
 OUT = sys.argv[2]
@@ -12,6 +14,9 @@ SHARED = os.path.abspath(os.path.join(SC, '../../../shared'))
 rng = random.Random(int(sys.argv[4]) if len(sys.argv) > 4 else 79)
 scenes = ['sphere_point', 'sphere_directional', 'sphere_quad', 'sphere_sharp_area', 'sphere_envmap',
           'sphere_orbit', 'cornell_point', 'cornell_area']
+only = sys.argv[5].split(',') if len(sys.argv) > 5 else []
+for s in only:
+    if s not in scenes: sys.exit(f'unknown scene {s} (allowed: {", ".join(scenes)})')
 filters = {'box': None, 'gaussian': '<rfilter type="gaussian"/>', 'tent': '<rfilter type="tent"/>'}
 os.makedirs(OUT, exist_ok=True)
 for f, rf in filters.items():
@@ -23,6 +28,7 @@ for f, rf in filters.items():
 rows = []
 for i in range(N):
     s = rng.choice(scenes)
+    if only: s = only[scenes.index(s) % len(only)]
     f = rng.choice(list(filters))
     cornell = s.startswith('cornell')
     size = rng.choice([64, 96, 128] if cornell else [64, 96, 128, 192, 256])
