@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -42,12 +43,16 @@ protected:
         return args;
     }
 
-    // Renders `scene` with `truth` defines into NAME.exr.
+    // Renders `scene` with `truth` defines into NAME.exr, with $PHONGFIT_TEST_RENDER_EXE if set:
+    // the sanitized run (scripts/sanitize.sh) renders the images to fit with the plain build,
+    // whose images are the same to the bit, and fits them with the sanitized one.
     std::string render(const std::string& scene, const std::map<std::string, std::string>& truth,
                        const std::string& name, int spp, const std::string& seed = "11") {
         std::vector<std::string> args = {
             PHONGFIT_EXE,        "render", scene, "-o",     path(name + ".exr"), "--spp",
             std::to_string(spp), "--seed", seed,  "--quiet"};
+        if (const char* renderer = std::getenv("PHONGFIT_TEST_RENDER_EXE"); renderer && *renderer)
+            args[0] = renderer;
         const auto d = defines(truth);
         args.insert(args.end(), d.begin(), d.end());
         const auto r = test::runProcess(args);
