@@ -53,9 +53,10 @@ std::string withoutTimes(const fs::path& csv) {
     return out;
 }
 
-test::ProcessResult run(std::vector<std::string> args) {
-    args.insert(args.begin(), PHONGFIT_EXE);
-    return test::runProcess(args);
+test::ProcessResult run(const std::vector<std::string>& args) {
+    std::vector<std::string> command = {PHONGFIT_EXE};
+    command.insert(command.end(), args.begin(), args.end());
+    return test::runProcess(command);
 }
 
 bool contains(const std::string& text, const std::string& part) {
