@@ -69,9 +69,8 @@ protected:
     }
     static void TearDownTestSuite() { fs::remove_all(dir_); }
     static fs::path path(const std::string& name) { return dir_ / name; }
-    static test::ProcessResult run(std::vector<std::string> args) {
-        args.insert(args.begin(), PHONGFIT_EXE);
-        return test::runProcess(args);
+    static test::ProcessResult run(const std::vector<std::string>& args) {
+        return test::runPhongfit(args);
     }
     static fs::path dir_;
 };

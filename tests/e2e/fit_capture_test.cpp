@@ -24,9 +24,8 @@ using test::Synthetic;
 class CaptureCommand : public ::testing::Test {
 protected:
     void SetUp() override { Synthetic().write(dir_.path()); }
-    test::ProcessResult run(std::vector<std::string> args) const {
-        args.insert(args.begin(), PHONGFIT_EXE);
-        return test::runProcess(args);
+    test::ProcessResult run(const std::vector<std::string>& args) const {
+        return test::runPhongfit(args);
     }
     std::string out(const std::string& name) const { return (dir_.path() / name).string(); }
 

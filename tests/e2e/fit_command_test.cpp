@@ -65,14 +65,13 @@ protected:
         return {r.out, nlohmann::json::parse(std::ifstream(path(out + "/fit.json")))};
     }
     static test::ProcessResult run(std::vector<std::string> args) {
-        args.insert(args.begin(), PHONGFIT_EXE);
         for (const char* d : {"width", "height"}) {
-            if (args.size() > 1 && (args[1] == "render" || args[1] == "fit")) {
+            if (!args.empty() && (args[0] == "render" || args[0] == "fit")) {
                 args.push_back("-D");
                 args.push_back(std::string(d) + "=" + std::to_string(kSize));
             }
         }
-        return test::runProcess(args);
+        return test::runPhongfit(args);
     }
     static fs::path dir_;
 };
@@ -320,17 +319,17 @@ TEST_F(FitCommand, MaxMemoryTooSmallFailsBeforeRecording) {
 // pixel in the 51016 pixels on the sphere of a 400x400 film (the rest record none) forecast about
 // 2.8 GB, under half this machine's memory but over 2 GB.
 TEST_F(FitCommand, MaxMemoryRefusesARecordingThatWouldNotFit) {
-    // test::runProcess, not run(): this film is not kSize wide.
+    // test::runPhongfit, not run(): this film is not kSize wide.
     const std::vector<std::string> film = {"-D", "width=400", "-D", "height=400"};
-    std::vector<std::string> args = {PHONGFIT_EXE,          "render",  kSphere, "-o",
-                                     path("sphere400.exr"), "--quiet", "--spp", "1"};
+    std::vector<std::string> args = {"render",  kSphere, "-o", path("sphere400.exr"),
+                                     "--quiet", "--spp", "1"};
     args.insert(args.end(), film.begin(), film.end());
-    ASSERT_EQ(test::runProcess(args).exitCode, 0);
+    ASSERT_EQ(test::runPhongfit(args).exitCode, 0);
     const std::string view = kSphere + ":" + path("sphere400.exr");
-    args = {PHONGFIT_EXE, "fit",          "--view", view, "--material",          "sphere", "--spp",
-            "1024",       "--max-memory", "2",      "-o", path("big_recording"), "--quiet"};
+    args = {"fit",          "--view", view, "--material",          "sphere", "--spp", "1024",
+            "--max-memory", "2",      "-o", path("big_recording"), "--quiet"};
     args.insert(args.end(), film.begin(), film.end());
-    const auto r = test::runProcess(args);
+    const auto r = test::runPhongfit(args);
     EXPECT_NE(r.exitCode, 0);
     EXPECT_NE(r.err.find("recording 1024 paths per pixel of the 400x400 film (in "),
               std::string::npos)

@@ -57,8 +57,8 @@ protected:
         return s;
     }
     test::ProcessResult run(std::vector<std::string> args) const {
-        args.insert(args.begin(), {PHONGFIT_EXE, "hdr-merge"});
-        return test::runProcess(args);
+        args.insert(args.begin(), "hdr-merge");
+        return test::runPhongfit(args);
     }
 
     test::TempDir dir_{"hdr_merge"};

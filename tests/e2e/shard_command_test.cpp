@@ -53,11 +53,7 @@ std::string withoutTimes(const fs::path& csv) {
     return out;
 }
 
-test::ProcessResult run(const std::vector<std::string>& args) {
-    std::vector<std::string> command = {PHONGFIT_EXE};
-    command.insert(command.end(), args.begin(), args.end());
-    return test::runProcess(command);
-}
+test::ProcessResult run(const std::vector<std::string>& args) { return test::runPhongfit(args); }
 
 bool contains(const std::string& text, const std::string& part) {
     return text.find(part) != std::string::npos;

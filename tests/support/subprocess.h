@@ -123,4 +123,12 @@ inline ProcessResult runProcess(const std::vector<std::string>& args, const Sign
     return result;
 }
 
+// The phongfit executable under test with these arguments (PHONGFIT_EXE, which every test has).
+inline ProcessResult runPhongfit(const std::vector<std::string>& args,
+                                 const SignalPlan& plan = {}) {
+    std::vector<std::string> command = {PHONGFIT_EXE};
+    command.insert(command.end(), args.begin(), args.end());
+    return runProcess(command, plan);
+}
+
 }  // namespace phongfit::test
