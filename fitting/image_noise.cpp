@@ -1,5 +1,6 @@
 #include "image_noise.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -17,11 +18,13 @@ namespace {
 // The median of a chi-square variable with one degree of freedom, over its mean.
 constexpr double kChiSquareMedian = 0.4549;
 
-// A pixel holds a parameter with at least this share of its information (J^T J's diagonal); a
-// parameter held by more pixels than 1 / kHeldShare shows their noise in their residuals. The
+// A pixel holds a parameter with at least this share of its information (J^T J's diagonal). The
 // images are rendered anew at the kRenderedPixels that hold the largest shares, and the kHolders
-// largest of each parameter are kept while the pixels are summed.
-constexpr double kHeldShare = 0.25;
+// largest of each parameter are kept while the pixels are summed. A twentieth, not a quarter: a
+// sharp lobe that reflects a probe's sun spreads ks over a few bright pixels, none holding a
+// quarter, whose stratified samples are far noisier than the model's median pixel says
+// (docs/design/fitter.md, "A sharp lobe under a textured environment").
+constexpr double kHeldShare = 0.05;
 constexpr std::size_t kRenderedPixels = 4;
 constexpr std::size_t kHolders = 8;
 
@@ -191,10 +194,16 @@ Eigen::MatrixXd renderedNoiseSum(Objective<P>& objective, const double* y, const
             Eigen::Matrix3d covariance;
             const Eigen::MatrixXd j = pixelTerms(objective, y, u, scratch, r, covariance);
             const double w = objective.weight(u) * scale;
-            const Eigen::Matrix3d image = w * w * renders[k].covariance;
-            if (!(image.trace() > kappa * covariance.trace())) return;
+            // The rendered noise where it exceeds the model's, direction by direction over the
+            // channels: a larger trace can hide a smaller variance along some direction, and
+            // taking that would narrow the estimate's standard errors on 16 renders' word.
+            const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> excess(
+                w * w * renders[k].covariance - kappa * covariance);
+            const Eigen::Vector3d larger = excess.eigenvalues().cwiseMax(0.0);
+            if (!(larger.maxCoeff() > 0)) return;
+            const Eigen::MatrixXd jv = excess.eigenvectors().transpose() * j;
             const std::vector<Eigen::Index>& indices = scratch.indices;
-            sum(indices, indices) += j.transpose() * (image - kappa * covariance) * j;
+            sum(indices, indices) += jv.transpose() * larger.asDiagonal() * jv;
         };
         added += objective.sumPixels(pixels.size(), zero, raise);
     }
