@@ -58,8 +58,8 @@ TEST(PngFuzz, DicomContentIsRefusedByHdrMerge) {
     const std::string good = dir.at("good.png");
     ASSERT_TRUE(cv::imwrite(good, cv::Mat(2, 3, CV_8UC3, cv::Scalar(10, 20, 30))));
     const std::string bad = dir.write("dicm.png", kDicomNamedPng).string();
-    const test::ProcessResult r = test::runProcess(
-        {PHONGFIT_EXE, "hdr-merge", good, bad, "--times", "1,2", "-o", dir.at("merged.exr")});
+    const test::ProcessResult r =
+        test::runPhongfit({"hdr-merge", good, bad, "--times", "1,2", "-o", dir.at("merged.exr")});
     EXPECT_EQ(r.signal, 0) << r.err;
     EXPECT_EQ(r.exitCode, 1) << r.err;
     EXPECT_NE(r.err.find("'" + bad + "': not a valid image file"), std::string::npos) << r.err;
@@ -129,7 +129,7 @@ TEST(SceneRenderFuzz, CameraBeyondEmbreeRangeIsAnErrorNotAnAbort) {
 </scene>)")
                                   .string();
     const test::ProcessResult r =
-        test::runProcess({PHONGFIT_EXE, "render", scene, "--spp", "1", "-o", dir.at("far.exr")});
+        test::runPhongfit({"render", scene, "--spp", "1", "-o", dir.at("far.exr")});
     EXPECT_EQ(r.signal, 0) << r.err;
     EXPECT_EQ(r.exitCode, 1) << r.err;
     EXPECT_NE(r.err.find("the camera is placed beyond +-1e+15"), std::string::npos) << r.err;
@@ -147,9 +147,8 @@ std::string fuzzInput(const std::string& name) {
 // split of these ten triangles, and the render aborted; scenes are built at medium quality now.
 TEST(SceneRenderFuzz, WallsEmbreesSpatialSplitsAssertedOnRender) {
     const test::TempDir dir("fuzz_regression");
-    const test::ProcessResult r =
-        test::runProcess({PHONGFIT_EXE, "render", fuzzInput("scene_spatial_split.xml"), "--spp",
-                          "1", "-o", dir.at("walls.exr")});
+    const test::ProcessResult r = test::runPhongfit(
+        {"render", fuzzInput("scene_spatial_split.xml"), "--spp", "1", "-o", dir.at("walls.exr")});
     EXPECT_EQ(r.signal, 0) << r.err;
     EXPECT_EQ(r.exitCode, 0) << r.err;
     const Image image = readImage(dir.at("walls.exr"));

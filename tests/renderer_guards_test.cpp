@@ -98,8 +98,8 @@ TEST(RendererGuards, RenderSidecarSaysWhereNonFiniteSamplesCameFrom) {
                                      std::to_string(std::random_device{}()));
     fs::create_directories(dir);
     std::ofstream(dir / "s.xml") << overflowingScene(16);
-    const auto r = test::runProcess({PHONGFIT_EXE, "render", (dir / "s.xml").string(), "-o",
-                                     (dir / "out.exr").string(), "--quiet"});
+    const auto r = test::runPhongfit(
+        {"render", (dir / "s.xml").string(), "-o", (dir / "out.exr").string(), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("material 'hot'"), std::string::npos) << r.out;
     const auto sidecar = nlohmann::json::parse(std::ifstream(dir / "out.exr.json"));

@@ -80,10 +80,9 @@ protected:
     static test::ProcessResult synth(const std::string& config, const fs::path& out,
                                      std::vector<std::string> extra = {},
                                      const test::SignalPlan& signal = {}) {
-        std::vector<std::string> args = {PHONGFIT_EXE, "synth",      config,
-                                         "-o",         out.string(), "--quiet"};
+        std::vector<std::string> args = {"synth", config, "-o", out.string(), "--quiet"};
         args.insert(args.end(), extra.begin(), extra.end());
-        return test::runProcess(args, signal);
+        return test::runPhongfit(args, signal);
     }
 
     fs::path dir_;

@@ -69,18 +69,16 @@ protected:
     }
     static void TearDownTestSuite() { fs::remove_all(dir_); }
     static fs::path path(const std::string& name) { return dir_ / name; }
-    static test::ProcessResult run(const std::vector<std::string>& args) {
-        return test::runPhongfit(args);
-    }
     static fs::path dir_;
 };
 fs::path Bench::dir_;
 
 TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
     // A budget no render reaches, so every strategy doubles its spp up to --spp-max.
-    const auto r = run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24",
-                        "-D", "height=24", "--reference-spp", "256", "--spp-max", "8", "--budget",
-                        "60", "-o", path("render").string(), "--quiet"});
+    const auto r =
+        test::runPhongfit({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24",
+                           "-D", "height=24", "--reference-spp", "256", "--spp-max", "8",
+                           "--budget", "60", "-o", path("render").string(), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::string header;
     const auto rows = readCsv(path("render/error_vs_time.csv"), header);
@@ -137,31 +135,34 @@ TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
     EXPECT_NE(r.out.find("eff@8"), std::string::npos) << r.out;
 
     // A given reference is used as it is; one of the wrong size is refused on one line.
-    const auto again = run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24",
-                            "-D", "height=24", "--reference", path("render/reference.exr").string(),
-                            "--spp-max", "2", "-o", path("render2").string(), "--quiet"});
+    const auto again =
+        test::runPhongfit({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24",
+                           "-D", "height=24", "--reference", path("render/reference.exr").string(),
+                           "--spp-max", "2", "-o", path("render2").string(), "--quiet"});
     ASSERT_EQ(again.exitCode, 0) << again.err;
     EXPECT_FALSE(fs::exists(path("render2/reference.exr")));
 
     // --strategies runs a subset, and the baseline with it; an unknown name is refused on one line.
     const auto subset =
-        run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24", "-D",
-             "height=24", "--reference", path("render/reference.exr").string(), "--spp-max", "2",
-             "--strategies", "sobol/mixture+mis", "--baseline", "mixture+mis", "-o",
-             path("render4").string(), "--quiet"});
+        test::runPhongfit({"bench", "render", kScenes + "/sphere_sharp_area.xml", "-D", "width=24",
+                           "-D", "height=24", "--reference", path("render/reference.exr").string(),
+                           "--spp-max", "2", "--strategies", "sobol/mixture+mis", "--baseline",
+                           "mixture+mis", "-o", path("render4").string(), "--quiet"});
     ASSERT_EQ(subset.exitCode, 0) << subset.err;
     std::set<std::string> ran;
     for (const auto& row : readCsv(path("render4/error_vs_time.csv"), header)) ran.insert(row[0]);
     EXPECT_EQ(ran, (std::set<std::string>{"mixture+mis", "sobol/mixture+mis"}));
-    const auto unknown = run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "--strategies",
-                              "sobol/nope", "-o", path("render5").string()});
+    const auto unknown =
+        test::runPhongfit({"bench", "render", kScenes + "/sphere_sharp_area.xml", "--strategies",
+                           "sobol/nope", "-o", path("render5").string()});
     EXPECT_NE(unknown.exitCode, 0);
     EXPECT_NE(unknown.err.find("unknown strategy 'sobol/nope' (allowed: lafortune+mis,"),
               std::string::npos)
         << unknown.err;
     EXPECT_EQ(std::count(unknown.err.begin(), unknown.err.end(), '\n'), 1) << unknown.err;
-    const auto wrong = run({"bench", "render", kScenes + "/sphere_sharp_area.xml", "--reference",
-                            path("render/reference.exr").string(), "-o", path("render3").string()});
+    const auto wrong =
+        test::runPhongfit({"bench", "render", kScenes + "/sphere_sharp_area.xml", "--reference",
+                           path("render/reference.exr").string(), "-o", path("render3").string()});
     EXPECT_NE(wrong.exitCode, 0);
     EXPECT_NE(wrong.err.find("is 24x24 but the film"), std::string::npos) << wrong.err;
     EXPECT_EQ(std::count(wrong.err.begin(), wrong.err.end(), '\n'), 1) << wrong.err;
@@ -169,11 +170,11 @@ TEST_F(Bench, RenderWritesErrorAgainstTimeForEveryStrategy) {
 }
 
 TEST_F(Bench, FitRecoversTheSmallDatasetAndSummarizes) {
-    const auto synth =
-        run({"synth", PHONGFIT_CONFIGS_DIR "/small.json", "-o", path("small").string(), "--quiet"});
+    const auto synth = test::runPhongfit(
+        {"synth", PHONGFIT_CONFIGS_DIR "/small.json", "-o", path("small").string(), "--quiet"});
     ASSERT_EQ(synth.exitCode, 0) << synth.err;
-    const auto r = run({"bench", "fit", path("small").string(), "--spp-per-round", "4,8", "-o",
-                        path("fit").string(), "--quiet"});
+    const auto r = test::runPhongfit({"bench", "fit", path("small").string(), "--spp-per-round",
+                                      "4,8", "-o", path("fit").string(), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
 
     std::string header;
@@ -237,12 +238,12 @@ TEST_F(Bench, FitRecoversTheSmallDatasetAndSummarizes) {
 // each parameter out of tolerance with a standard error that says so), none fails, and most are
 // within the tolerances outright. The whole matrix is `bench fit` on configs/matrix.json.
 TEST_F(Bench, RecoveryMatrixSubsetPassesAtDefaults) {
-    const auto synth = run({"synth", PHONGFIT_CONFIGS_DIR "/matrix_ci.json", "-o",
-                            path("matrix").string(), "--quiet"});
+    const auto synth = test::runPhongfit({"synth", PHONGFIT_CONFIGS_DIR "/matrix_ci.json", "-o",
+                                          path("matrix").string(), "--quiet"});
     ASSERT_EQ(synth.exitCode, 0) << synth.err;
-    const auto r = run({"bench", "fit", path("matrix").string(), "--spp-per-round", "4",
-                        "--start-n-factor", "100", "--start-kd", "0.3", "--start-ks", "0.3", "-o",
-                        path("fit").string(), "--quiet"});
+    const auto r = test::runPhongfit({"bench", "fit", path("matrix").string(), "--spp-per-round",
+                                      "4", "--start-n-factor", "100", "--start-kd", "0.3",
+                                      "--start-ks", "0.3", "-o", path("fit").string(), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     const json summary = json::parse(std::ifstream(path("fit/summary.json")));
     int groups = 0;
@@ -297,11 +298,12 @@ TEST_F(Bench, RecoveryMatrixSubsetPassesAtDefaults) {
 // --time-budget bounds every fit as fit --time-budget does: a budget spent by the first round
 // leaves one round, stopped by the budget, and the run's settings record it.
 TEST_F(Bench, FitTimeBudgetBoundsEveryFit) {
-    const auto synth =
-        run({"synth", PHONGFIT_CONFIGS_DIR "/small.json", "-o", path("small").string(), "--quiet"});
+    const auto synth = test::runPhongfit(
+        {"synth", PHONGFIT_CONFIGS_DIR "/small.json", "-o", path("small").string(), "--quiet"});
     ASSERT_EQ(synth.exitCode, 0) << synth.err;
-    const auto r = run({"bench", "fit", path("small").string(), "--spp-per-round", "4",
-                        "--time-budget", "1e-6", "-o", path("fit").string(), "--quiet"});
+    const auto r =
+        test::runPhongfit({"bench", "fit", path("small").string(), "--spp-per-round", "4",
+                           "--time-budget", "1e-6", "-o", path("fit").string(), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::string header;
     const auto rows = readCsv(path("fit/recovery.csv"), header);
@@ -315,8 +317,8 @@ TEST_F(Bench, FitTimeBudgetBoundsEveryFit) {
     }
     const json record = json::parse(std::ifstream(path("fit/bench_run.json")));
     EXPECT_EQ(record["settings"]["time_budget"], 1e-6);
-    const auto negative = run({"bench", "fit", path("small").string(), "--time-budget", "-1", "-o",
-                               path("fit2").string()});
+    const auto negative = test::runPhongfit({"bench", "fit", path("small").string(),
+                                             "--time-budget", "-1", "-o", path("fit2").string()});
     EXPECT_NE(negative.exitCode, 0);
     EXPECT_NE(negative.err.find("--time-budget"), std::string::npos) << negative.err;
     EXPECT_FALSE(fs::exists(path("fit2")));
@@ -324,7 +326,8 @@ TEST_F(Bench, FitTimeBudgetBoundsEveryFit) {
 
 TEST_F(Bench, FitRefusesAnIncompleteDataset) {
     fs::create_directories(path("incomplete/sample_0000"));
-    const auto r = run({"bench", "fit", path("incomplete").string(), "-o", path("x").string()});
+    const auto r =
+        test::runPhongfit({"bench", "fit", path("incomplete").string(), "-o", path("x").string()});
     EXPECT_NE(r.exitCode, 0);
     EXPECT_NE(r.err.find("index.json"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("phongfit synth"), std::string::npos) << r.err;

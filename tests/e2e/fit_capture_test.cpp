@@ -24,17 +24,15 @@ using test::Synthetic;
 class CaptureCommand : public ::testing::Test {
 protected:
     void SetUp() override { Synthetic().write(dir_.path()); }
-    test::ProcessResult run(const std::vector<std::string>& args) const {
-        return test::runPhongfit(args);
-    }
     std::string out(const std::string& name) const { return (dir_.path() / name).string(); }
 
     test::TempDir dir_{"capture_command"};
 };
 
 TEST_F(CaptureCommand, WritesReportAndComparison) {
-    const auto r = run({"fit", "--capture", dir_.path().string(), "--lights", "1-20", "--holdout",
-                        "21-30", "--threads", "2", "-o", out("fit"), "--quiet"});
+    const auto r =
+        test::runPhongfit({"fit", "--capture", dir_.path().string(), "--lights", "1-20",
+                           "--holdout", "21-30", "--threads", "2", "-o", out("fit"), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("capture: kd = "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("held out 10 lights"), std::string::npos) << r.out;
@@ -66,8 +64,9 @@ TEST_F(CaptureCommand, WritesReportAndComparison) {
 // --albedo per-pixel: a kd per mask pixel (kd.exr, kd.png), one ks and n, the held-out lights
 // against the per-pixel Lambertian baseline.
 TEST_F(CaptureCommand, PerPixelAlbedoWritesTheMapAndTheHoldoutComparison) {
-    const auto r = run({"fit", "--capture", dir_.path().string(), "--albedo", "per-pixel",
-                        "--holdout", "21-30", "--threads", "2", "-o", out("map"), "--quiet"});
+    const auto r =
+        test::runPhongfit({"fit", "--capture", dir_.path().string(), "--albedo", "per-pixel",
+                           "--holdout", "21-30", "--threads", "2", "-o", out("map"), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("capture, per-pixel albedo: ks = "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("per-pixel Lambertian"), std::string::npos) << r.out;
@@ -101,8 +100,9 @@ TEST_F(CaptureCommand, PerPixelAlbedoWritesTheMapAndTheHoldoutComparison) {
     EXPECT_FALSE(fs::exists(out("map/materials.png")));
 
     // --materials 2: a lobe per material (here both the truth's) and the material map.
-    const auto k = run({"fit", "--capture", dir_.path().string(), "--albedo", "per-pixel",
-                        "--materials", "2", "--threads", "2", "-o", out("two"), "--quiet"});
+    const auto k =
+        test::runPhongfit({"fit", "--capture", dir_.path().string(), "--albedo", "per-pixel",
+                           "--materials", "2", "--threads", "2", "-o", out("two"), "--quiet"});
     ASSERT_EQ(k.exitCode, 0) << k.err;
     EXPECT_NE(k.out.find("  material 2 ("), std::string::npos) << k.out;
     const auto two = nlohmann::json::parse(std::ifstream(out("two/fit.json")));
@@ -126,8 +126,8 @@ TEST_F(CaptureCommand, EqualIntensitiesAreTakenAsRelative) {
     Synthetic synth;
     synth.commonIntensity = 0.3;
     synth.write(relative.path());
-    const auto r = run({"fit", "--capture", relative.path().string(), "--threads", "2", "-o",
-                        out("relative"), "--quiet"});
+    const auto r = test::runPhongfit({"fit", "--capture", relative.path().string(), "--threads",
+                                      "2", "-o", out("relative"), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("light intensities: relative (every light has the same intensity"),
               std::string::npos)
@@ -139,8 +139,9 @@ TEST_F(CaptureCommand, EqualIntensitiesAreTakenAsRelative) {
                 0.02 * scale * synth.truth.kd[0]);
     EXPECT_NE(report["units"].get<std::string>().find("no energy bound"), std::string::npos);
 
-    const auto c = run({"fit", "--capture", relative.path().string(), "--intensities", "calibrated",
-                        "--threads", "2", "-o", out("calibrated"), "--quiet"});
+    const auto c =
+        test::runPhongfit({"fit", "--capture", relative.path().string(), "--intensities",
+                           "calibrated", "--threads", "2", "-o", out("calibrated"), "--quiet"});
     ASSERT_EQ(c.exitCode, 0) << c.err;
     EXPECT_NE(c.out.find("light intensities: calibrated\n"), std::string::npos) << c.out;
     EXPECT_NE(c.out.find("warning: the fit ended on kd + ks = 1"), std::string::npos) << c.out;
@@ -187,7 +188,7 @@ TEST_F(CaptureCommand, WrongDecodingIsNamed) {
                                          "per-pixel",     "--threads", "2",   "-o",
                                          out("decoding"), "--quiet"};
         args.insert(args.end(), c.flags.begin(), c.flags.end());
-        const auto r = run(args);
+        const auto r = test::runPhongfit(args);
         ASSERT_EQ(r.exitCode, 0) << r.err;
         const auto report = nlohmann::json::parse(std::ifstream(out("decoding/fit.json")));
         EXPECT_EQ(report["decoding_check"]["other_fits_better"].get<bool>(), !c.warning.empty())
@@ -202,8 +203,8 @@ TEST_F(CaptureCommand, WrongDecodingIsNamed) {
 // DiLiGenT's pot2 (the public 8-bit linear crop) has 73 zero normals inside its mask: they are
 // left out and counted, and the rest is fitted.
 TEST_F(CaptureCommand, RealCaptureWithZeroNormalsIsFittedWithThemCounted) {
-    const auto r = run({"fit", "--capture", PHONGFIT_POT2_DIR, "--linear", "--lights", "1-8",
-                        "--threads", "2", "-o", out("pot2"), "--quiet"});
+    const auto r = test::runPhongfit({"fit", "--capture", PHONGFIT_POT2_DIR, "--linear", "--lights",
+                                      "1-8", "--threads", "2", "-o", out("pot2"), "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("left out 73 pixels of the mask whose normal is zero, not unit or not "
                          "finite"),
@@ -254,7 +255,7 @@ TEST_F(CaptureCommand, BadInputIsRefusedWithOneLineAndNothingWritten) {
         std::vector<std::string> args = {"fit"};
         args.insert(args.end(), c.args.begin(), c.args.end());
         args.insert(args.end(), {"-o", out("refused"), "--quiet"});
-        const auto r = run(args);
+        const auto r = test::runPhongfit(args);
         EXPECT_NE(r.exitCode, 0) << c.fragment;
         EXPECT_NE(r.err.find(c.fragment), std::string::npos)
             << "expected '" << c.fragment << "' in: " << r.err;

@@ -74,9 +74,9 @@ protected:
         EXPECT_TRUE(std::isfinite(m["n"].get<double>()));
         EXPECT_TRUE(std::isfinite(report["rmse"].get<double>()));
         const std::string side = std::to_string(size);
-        const auto again = test::runProcess({PHONGFIT_EXE, "render", path("out/fitted.xml"), "-o",
-                                             path("again.exr"), "--spp", "1", "-D", "width=" + side,
-                                             "-D", "height=" + side, "--quiet"});
+        const auto again =
+            test::runPhongfit({"render", path("out/fitted.xml"), "-o", path("again.exr"), "--spp",
+                               "1", "-D", "width=" + side, "-D", "height=" + side, "--quiet"});
         EXPECT_EQ(again.exitCode, 0) << again.err;
         EXPECT_EQ(cv::imread(path("out/compare.png")).rows, size);
         expectNoTemporaries();
@@ -86,21 +86,18 @@ protected:
 };
 
 TEST_F(FitSynthInterrupt, FitWritesBestParametersSoFarAfterSigint) {
-    const auto target =
-        test::runProcess({PHONGFIT_EXE, "render", kSphere, "-o", path("t.exr"), "--spp", "64", "-D",
-                          "width=40", "-D", "height=40", "--quiet"});
+    const auto target = test::runPhongfit({"render", kSphere, "-o", path("t.exr"), "--spp", "64",
+                                           "-D", "width=40", "-D", "height=40", "--quiet"});
     ASSERT_EQ(target.exitCode, 0) << target.err;
     // Far from the truth, many rounds at many paths: still fitting when round 1 is reported.
-    const std::vector<std::string> args = {
-        PHONGFIT_EXE, "fit",       "--view", kSphere + ":" + path("t.exr"),
-        "--material", "sphere",    "--n",    "3000",
-        "--kd",       "0.05",      "--spp",  "256",
-        "--rounds",   "100",       "-D",     "width=40",
-        "-D",         "height=40", "-o",     path("out")};
-    const auto r = test::runProcess(args, {[](const std::string&, const std::string& err) {
-                                               return err.find("round 1:") != std::string::npos;
-                                           },
-                                           {SIGINT}});
+    const auto r =
+        test::runPhongfit({"fit", "--view", kSphere + ":" + path("t.exr"), "--material", "sphere",
+                           "--n", "3000", "--kd", "0.05", "--spp", "256", "--rounds", "100", "-D",
+                           "width=40", "-D", "height=40", "-o", path("out")},
+                          {[](const std::string&, const std::string& err) {
+                               return err.find("round 1:") != std::string::npos;
+                           },
+                           {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_EQ(r.err.find("round 3:"), std::string::npos) << "the fit went on after SIGINT";
     const auto report = nlohmann::json::parse(std::ifstream(path("out/fit.json")));
@@ -111,18 +108,15 @@ TEST_F(FitSynthInterrupt, FitWritesBestParametersSoFarAfterSigint) {
 
 TEST_F(FitSynthInterrupt, FitInterruptedInItsFirstRoundStillWritesValidOutputs) {
     const std::string cornell = std::string(PHONGFIT_SCENES_DIR) + "/cornell_phong.xml";
-    const auto target =
-        test::runProcess({PHONGFIT_EXE, "render", cornell, "-o", path("t.exr"), "--spp", "16", "-D",
-                          "width=32", "-D", "height=32", "--quiet"});
+    const auto target = test::runPhongfit({"render", cornell, "-o", path("t.exr"), "--spp", "16",
+                                           "-D", "width=32", "-D", "height=32", "--quiet"});
     ASSERT_EQ(target.exitCode, 0) << target.err;
     // Recording 2048 paths per pixel of a path-traced scene takes seconds: the signal comes
     // during the first round. The best parameters so far are then the starting ones, or better.
-    const std::vector<std::string> args = {
-        PHONGFIT_EXE, "fit",      "--view", cornell + ":" + path("t.exr"),
-        "--material", "sphere",   "--spp",  "2048",
-        "-D",         "width=32", "-D",     "height=32",
-        "-o",         path("out")};
-    const auto r = test::runProcess(args, {test::after(std::chrono::milliseconds(300)), {SIGINT}});
+    const auto r =
+        test::runPhongfit({"fit", "--view", cornell + ":" + path("t.exr"), "--material", "sphere",
+                           "--spp", "2048", "-D", "width=32", "-D", "height=32", "-o", path("out")},
+                          {test::after(std::chrono::milliseconds(300)), {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     expectCompleteInterruptedFit(nlohmann::json::parse(std::ifstream(path("out/fit.json"))), 32);
 }
@@ -139,14 +133,13 @@ TEST_F(FitSynthInterrupt, SynthKeepsFinishedSamplesAndResumes) {
                           {"ks_share", {0.1, 0.6}},
                           {"n", {5, 500}},
                           {"defines", {{"width", 48}, {"height", 48}}}};
-    const std::vector<std::string> args = {PHONGFIT_EXE, "synth",         path("config.json"),
-                                           "-o",         path("dataset"), "--jobs",
-                                           "1",          "--quiet"};
+    const std::vector<std::string> args = {
+        "synth", path("config.json"), "-o", path("dataset"), "--jobs", "1", "--quiet"};
     const fs::path dataset = path("dataset");
-    const auto r = test::runProcess(args, {[&](const std::string&, const std::string&) {
-                                               return !finishedSamples(dataset).empty();
-                                           },
-                                           {SIGINT}});
+    const auto r = test::runPhongfit(args, {[&](const std::string&, const std::string&) {
+                                                return !finishedSamples(dataset).empty();
+                                            },
+                                            {SIGINT}});
     ASSERT_NE(r.exitCode, 0) << "an interrupted dataset is not complete";
     EXPECT_NE(r.err.find("interrupted"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("again to resume"), std::string::npos) << r.err;
@@ -166,7 +159,7 @@ TEST_F(FitSynthInterrupt, SynthKeepsFinishedSamplesAndResumes) {
             kept[sample / file] = readBytes(sample / file);
     }
 
-    const auto resumed = test::runProcess(args);
+    const auto resumed = test::runPhongfit(args);
     ASSERT_EQ(resumed.exitCode, 0) << resumed.err;
     const auto index = nlohmann::json::parse(std::ifstream(dataset / "index.json"));
     EXPECT_EQ(index["count"], samples);

@@ -604,13 +604,13 @@ TEST_P(MalformedInput, RefusedWithOneLineAndNothingWritten) {
     const Case& c = GetParam();
     c.prepare(dir_);
     const std::set<std::string> before = listing();
-    std::vector<std::string> argv = {PHONGFIT_EXE};
+    std::vector<std::string> args;
     for (std::string a : c.args) {
         for (std::size_t at; (at = a.find("{d}")) != std::string::npos;)
             a.replace(at, 3, dir_.string());
-        argv.push_back(a);
+        args.push_back(a);
     }
-    const test::ProcessResult r = test::runProcess(argv);
+    const test::ProcessResult r = test::runPhongfit(args);
     EXPECT_EQ(r.exitCode, c.exitCode) << r.err;
     EXPECT_NE(r.err.find(c.fragment), std::string::npos)
         << "expected '" << c.fragment << "' in: " << r.err;

@@ -26,9 +26,9 @@ protected:
 const std::string kScenes = PHONGFIT_SCENES_DIR;
 
 TEST_F(RenderCommand, WritesExrPngAndSidecar) {
-    const auto r = test::runProcess({PHONGFIT_EXE, "render", kScenes + "/sphere_point.xml", "-o",
-                                     path("a.exr"), "--png", path("a.png"), "--spp", "4", "-D",
-                                     "width=32", "-D", "height=24", "--seed", "3", "--quiet"});
+    const auto r = test::runPhongfit({"render", kScenes + "/sphere_point.xml", "-o", path("a.exr"),
+                                      "--png", path("a.png"), "--spp", "4", "-D", "width=32", "-D",
+                                      "height=24", "--seed", "3", "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("rendered 32x24 at 4 spp"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("Mrays/s"), std::string::npos);
@@ -56,14 +56,13 @@ TEST_F(RenderCommand, WritesExrPngAndSidecar) {
 // --pixel-sampler overrides the scene's <sampler type>: a different image of the same mean; a name
 // that is not one is refused on one line.
 TEST_F(RenderCommand, PixelSamplerOverridesTheScenes) {
-    const std::vector<std::string> args = {PHONGFIT_EXE, "render", kScenes + "/sphere_point.xml",
-                                           "--spp",      "64",     "-D",
-                                           "width=32",   "-D",     "height=24",
-                                           "--quiet"};
+    const std::vector<std::string> args = {
+        "render", kScenes + "/sphere_point.xml", "--spp", "64", "-D", "width=32", "-D", "height=24",
+        "--quiet"};
     auto with = [&](std::vector<std::string> extra) {
         std::vector<std::string> all = args;
         all.insert(all.end(), extra.begin(), extra.end());
-        return test::runProcess(all);
+        return test::runPhongfit(all);
     };
     ASSERT_EQ(with({"-o", path("s.exr")}).exitCode, 0);  // the scene names sobol
     const auto r = with({"-o", path("i.exr"), "--pixel-sampler", "independent"});
@@ -86,10 +85,10 @@ TEST_F(RenderCommand, PixelSamplerOverridesTheScenes) {
 }
 
 TEST_F(RenderCommand, SigintWritesAValidPartialImage) {
-    const auto r = test::runProcess(
-        {PHONGFIT_EXE, "render", kScenes + "/cornell_phong.xml", "-o", path("c.exr"), "--spp",
-         "100000", "-D", "width=64", "-D", "height=64", "--quiet"},
-        {test::after(std::chrono::milliseconds(1500)), {SIGINT}});
+    const auto r =
+        test::runPhongfit({"render", kScenes + "/cornell_phong.xml", "-o", path("c.exr"), "--spp",
+                           "100000", "-D", "width=64", "-D", "height=64", "--quiet"},
+                          {test::after(std::chrono::milliseconds(1500)), {SIGINT}});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("interrupted: the image holds"), std::string::npos) << r.out;
     const Image image = readImage(path("c.exr"));
@@ -121,9 +120,7 @@ TEST_F(RenderCommand, BadInputGivesOneLineAndNoOutput) {
          "no/such/dir"},
     };
     for (const auto& [args, fragment] : cases) {
-        std::vector<std::string> argv = {PHONGFIT_EXE};
-        argv.insert(argv.end(), args.begin(), args.end());
-        const auto r = test::runProcess(argv);
+        const auto r = test::runPhongfit(args);
         EXPECT_NE(r.exitCode, 0) << fragment;
         EXPECT_NE(r.err.find(fragment), std::string::npos) << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;

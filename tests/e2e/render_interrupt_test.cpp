@@ -46,8 +46,8 @@ protected:
     // nothing while it runs (stderr is not a terminal): signals go after a delay counted from
     // the installation of its handler, which comes before the scene is even read.
     test::ProcessResult render(int side, const test::SignalPlan& plan) const {
-        return test::runProcess(
-            {PHONGFIT_EXE, "render", kCornell, "-o", path("out.exr"), "--spp", "100000", "-D",
+        return test::runPhongfit(
+            {"render", kCornell, "-o", path("out.exr"), "--spp", "100000", "-D",
              "width=" + std::to_string(side), "-D", "height=" + std::to_string(side), "--quiet"},
             plan);
     }

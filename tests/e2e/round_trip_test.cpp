@@ -75,12 +75,11 @@ protected:
     // Fits `views` (scene:image) with extra arguments; returns fit.json.
     nlohmann::json fit(const std::vector<std::string>& views, std::vector<std::string> extra,
                        const std::string& name, int seed = 3) {
-        std::vector<std::string> args = {PHONGFIT_EXE, "fit",    "--material",
-                                         "sphere",     "-o",     path(name),
-                                         "--quiet",    "--seed", std::to_string(seed)};
+        std::vector<std::string> args = {"fit",      "--material", "sphere", "-o",
+                                         path(name), "--quiet",    "--seed", std::to_string(seed)};
         for (const std::string& v : views) args.insert(args.end(), {"--view", v});
         args.insert(args.end(), extra.begin(), extra.end());
-        const auto r = test::runProcess(args);
+        const auto r = test::runPhongfit(args);
         EXPECT_EQ(r.exitCode, 0) << r.err;
         const auto report = nlohmann::json::parse(std::ifstream(path(name) + "/fit.json"));
         const auto precision = std::find(extra.begin(), extra.end(), "--precision");

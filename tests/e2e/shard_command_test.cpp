@@ -53,8 +53,6 @@ std::string withoutTimes(const fs::path& csv) {
     return out;
 }
 
-test::ProcessResult run(const std::vector<std::string>& args) { return test::runPhongfit(args); }
-
 bool contains(const std::string& text, const std::string& part) {
     return text.find(part) != std::string::npos;
 }
@@ -115,15 +113,16 @@ TEST(Shard, ComesFromTheSlurmArrayTask) {
 TEST(ShardedSynth, ShardsWriteTheFilesOfOneRun) {
     const test::TempDir dir("shard_synth");
     const fs::path whole = dir.path() / "whole", sharded = dir.path() / "sharded";
-    ASSERT_EQ(run({"synth", kSmall, "-o", whole.string(), "--quiet"}).exitCode, 0);
+    ASSERT_EQ(test::runPhongfit({"synth", kSmall, "-o", whole.string(), "--quiet"}).exitCode, 0);
 
-    const auto first = run({"synth", kSmall, "-o", sharded.string(), "--shard", "0/3", "--quiet"});
+    const auto first =
+        test::runPhongfit({"synth", kSmall, "-o", sharded.string(), "--shard", "0/3", "--quiet"});
     ASSERT_EQ(first.exitCode, 0) << first.err;
     EXPECT_TRUE(contains(first.out, "shard 0/3: 2 samples (2 rendered")) << first.out;
     EXPECT_TRUE(contains(first.out, "2 of the dataset's 4 samples are complete")) << first.out;
     EXPECT_FALSE(fs::exists(sharded / "index.json"));
     EXPECT_TRUE(fs::exists(sharded / "sample_0003/truth.json"));  // 3 mod 3 = 0
-    const auto early = run({"synth", "--merge", sharded.string()});
+    const auto early = test::runPhongfit({"synth", "--merge", sharded.string()});
     EXPECT_NE(early.exitCode, 0);
     EXPECT_TRUE(contains(early.err, "2 of 4 samples are not complete (sample_0001, sample_0002)"))
         << early.err;
@@ -132,23 +131,25 @@ TEST(ShardedSynth, ShardsWriteTheFilesOfOneRun) {
     // Shard 1 of 3 from a Slurm array task's variables (as a task of --array=0-2).
     setenv("SLURM_ARRAY_TASK_ID", "1", 1);
     setenv("SLURM_ARRAY_TASK_COUNT", "3", 1);
-    const auto second = run({"synth", kSmall, "-o", sharded.string(), "--quiet"});
+    const auto second = test::runPhongfit({"synth", kSmall, "-o", sharded.string(), "--quiet"});
     unsetenv("SLURM_ARRAY_TASK_ID");
     unsetenv("SLURM_ARRAY_TASK_COUNT");
     ASSERT_EQ(second.exitCode, 0) << second.err;
     EXPECT_TRUE(contains(second.out, "shard 1/3: 1 samples (1 rendered")) << second.out;
     // The last shard finds every sample and writes the index.
-    const auto last = run({"synth", kSmall, "-o", sharded.string(), "--shard", "2/3", "--quiet"});
+    const auto last =
+        test::runPhongfit({"synth", kSmall, "-o", sharded.string(), "--shard", "2/3", "--quiet"});
     ASSERT_EQ(last.exitCode, 0) << last.err;
     EXPECT_TRUE(contains(last.out, "-> " + (sharded / "index.json").string())) << last.out;
     EXPECT_EQ(snapshot(whole), snapshot(sharded));
 
     // --merge rewrites the same index; a rerun of a shard renders nothing.
     fs::remove(sharded / "index.json");
-    const auto merged = run({"synth", "--merge", sharded.string()});
+    const auto merged = test::runPhongfit({"synth", "--merge", sharded.string()});
     ASSERT_EQ(merged.exitCode, 0) << merged.err;
     EXPECT_EQ(snapshot(whole), snapshot(sharded));
-    const auto again = run({"synth", kSmall, "-o", sharded.string(), "--shard", "0/3", "--quiet"});
+    const auto again =
+        test::runPhongfit({"synth", kSmall, "-o", sharded.string(), "--shard", "0/3", "--quiet"});
     EXPECT_TRUE(contains(again.out, "(0 rendered, 2 already complete)")) << again.out;
 
     for (const auto& [args, message] :
@@ -157,7 +158,7 @@ TEST(ShardedSynth, ShardsWriteTheFilesOfOneRun) {
              {{"synth", kSmall, "-o", dir.at("x"), "--shard", "3/3"}, "--shard '3/3'"},
              {{"synth", kSmall, "--merge", sharded.string()}, "--merge DIR takes no CONFIG"},
              {{"synth", kSmall}, "needs CONFIG and -o DIR"}}) {
-        const auto r = run(args);
+        const auto r = test::runPhongfit(args);
         EXPECT_NE(r.exitCode, 0) << message;
         EXPECT_TRUE(contains(r.err, message)) << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
@@ -172,9 +173,11 @@ TEST(ShardedSynth, ConcurrentShardsStartTogether) {
         fs::remove_all(out);
         std::vector<test::ProcessResult> results(2);
         std::thread other([&] {
-            results[1] = run({"synth", kSmall, "-o", out.string(), "--shard", "1/2", "--quiet"});
+            results[1] = test::runPhongfit(
+                {"synth", kSmall, "-o", out.string(), "--shard", "1/2", "--quiet"});
         });
-        results[0] = run({"synth", kSmall, "-o", out.string(), "--shard", "0/2", "--quiet"});
+        results[0] =
+            test::runPhongfit({"synth", kSmall, "-o", out.string(), "--shard", "0/2", "--quiet"});
         other.join();
         for (const auto& r : results) ASSERT_EQ(r.exitCode, 0) << r.err;
         EXPECT_TRUE(fs::exists(out / "index.json"));
@@ -184,14 +187,14 @@ TEST(ShardedSynth, ConcurrentShardsStartTogether) {
 TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
     const test::TempDir dir("shard_bench");
     const std::string data = dir.at("data");
-    ASSERT_EQ(run({"synth", kSmall, "-o", data, "--quiet"}).exitCode, 0);
+    ASSERT_EQ(test::runPhongfit({"synth", kSmall, "-o", data, "--quiet"}).exitCode, 0);
     const std::vector<std::string> settings = {"--spp-per-round", "4,8", "--rounds", "3",
                                                "--quiet"};
     auto bench = [&](const std::string& out, std::vector<std::string> extra) {
         std::vector<std::string> args = {"bench", "fit", data, "-o", out};
         args.insert(args.end(), settings.begin(), settings.end());
         args.insert(args.end(), extra.begin(), extra.end());
-        return run(args);
+        return test::runPhongfit(args);
     };
     const auto whole = bench(dir.at("whole"), {"--threads", "2"});
     ASSERT_EQ(whole.exitCode, 0) << whole.err;
@@ -201,7 +204,7 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
     ASSERT_EQ(a.exitCode, 0) << a.err;
     EXPECT_TRUE(contains(a.out, "shard 0/3: 3 fits done; 3 of the run's 8 fits are done")) << a.out;
     EXPECT_FALSE(fs::exists(sharded / "recovery.csv"));
-    const auto early = run({"bench", "fit", "--merge", sharded.string()});
+    const auto early = test::runPhongfit({"bench", "fit", "--merge", sharded.string()});
     EXPECT_NE(early.exitCode, 0);
     EXPECT_TRUE(contains(early.err, "5 of 8 fits are not done")) << early.err;
     ASSERT_EQ(bench(sharded.string(), {"--shard", "1/3"}).exitCode, 0);
@@ -216,7 +219,7 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
 
     // --merge writes the same tables again; a rerun refits nothing.
     fs::remove(sharded / "recovery.csv");
-    const auto merged = run({"bench", "fit", "--merge", sharded.string()});
+    const auto merged = test::runPhongfit({"bench", "fit", "--merge", sharded.string()});
     ASSERT_EQ(merged.exitCode, 0) << merged.err;
     EXPECT_EQ(withoutTimes(dir.path() / "whole/recovery.csv"),
               withoutTimes(sharded / "recovery.csv"));
@@ -232,12 +235,13 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
     EXPECT_EQ(withoutTimes(dir.path() / "whole/recovery.csv"),
               withoutTimes(sharded / "recovery.csv"));
     // Other settings are another run: its fits are redone, not taken from the folder.
-    const auto other = run({"bench", "fit", data, "-o", sharded.string(), "--spp-per-round", "4",
-                            "--rounds", "2", "--quiet"});
+    const auto other = test::runPhongfit({"bench", "fit", data, "-o", sharded.string(),
+                                          "--spp-per-round", "4", "--rounds", "2", "--quiet"});
     ASSERT_EQ(other.exitCode, 0) << other.err;
     EXPECT_NE(fs::last_write_time(row), rowTime);
 
-    const auto wrong = run({"bench", "fit", "--merge", sharded.string(), "--rounds", "2"});
+    const auto wrong =
+        test::runPhongfit({"bench", "fit", "--merge", sharded.string(), "--rounds", "2"});
     EXPECT_NE(wrong.exitCode, 0);
     EXPECT_TRUE(contains(wrong.err, "--merge DIR takes no --rounds")) << wrong.err;
 
@@ -246,7 +250,7 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
     nlohmann::json broken = nlohmann::json::parse(std::ifstream(record));
     broken["settings"]["start_kd"] = "grey";
     std::ofstream(record) << broken.dump();
-    const auto damaged = run({"bench", "fit", "--merge", sharded.string()});
+    const auto damaged = test::runPhongfit({"bench", "fit", "--merge", sharded.string()});
     EXPECT_NE(damaged.exitCode, 0);
     EXPECT_TRUE(contains(damaged.err,
                          record.string() + ": 'settings.start_kd' = \"grey\": expected [r, g, b]"))
@@ -257,9 +261,9 @@ TEST(ShardedBenchFit, ShardsAndMergeGiveTheNumbersOfOneRun) {
 TEST(SlurmCommand, DryRunPrintsTheArrayScript) {
     const test::TempDir dir("slurm_dry");
     const std::string out = dir.at("ds");
-    const auto r =
-        run({"slurm", "synth", "--tasks", "4", "--partition", "batch", "--time", "0:30:00", "--mem",
-             "2G", "--cpus-per-task", "2", "--dry-run", kSmall, "-o", out, "--jobs", "1"});
+    const auto r = test::runPhongfit({"slurm", "synth", "--tasks", "4", "--partition", "batch",
+                                      "--time", "0:30:00", "--mem", "2G", "--cpus-per-task", "2",
+                                      "--dry-run", kSmall, "-o", out, "--jobs", "1"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     for (const std::string& line : std::vector<std::string>{
              "#!/bin/bash\n", "#SBATCH --array=0-3\n", "#SBATCH --partition=batch\n",
@@ -285,7 +289,7 @@ TEST(SlurmCommand, DryRunPrintsTheArrayScript) {
              {{"slurm", "bench-fit", "--tasks", "2", "--dry-run", dir.at("nodata"), "-o", out},
               "index.json"},
              {{"slurm", "synth", "--dry-run", kSmall, "-o", out}, "--tasks"}}) {
-        const auto bad = run(args);
+        const auto bad = test::runPhongfit(args);
         EXPECT_NE(bad.exitCode, 0) << message;
         EXPECT_TRUE(contains(bad.err, message)) << bad.err;
         EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
