@@ -120,7 +120,6 @@ Analysis RoundSolver<P>::solveLeastSquares(RoundOutcome& out) {
 template <int P>
 Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     const std::vector<double> before = params_.internal();
-    anchor_.reset();
     account(out, minimizeLeastSquares(objective_, params_, leastSquaresWeights_, true, options_));
     const std::vector<double> y = params_.naturalCoordinates();
     double crossSum = 0;
@@ -142,10 +141,9 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     projectOntoFace(cross);
     const std::vector<double> anchorX = params_.internal();
     Analysis analysis = analyse();
-    const Eigen::MatrixXd& anchorGram = cross ? analysis.crossGram : analysis.gram;
     const std::vector<std::vector<double>> anchorStd =
-        naturalStd(anchorGram, anchorScores<P>(objective_, params_.naturalCoordinates(), anchorGram,
-                                               params_.heldFlags(), cross));
+        cross ? naturalStd(analysis.crossGram, analysis.crossScores)
+              : naturalStd(analysis.gram, analysis.leastSquaresScores);
     instruments_.adopt(objective_, at_);
     std::vector<Eigen::Matrix<double, P, 1>> instrumentPoint = params_.naturalBlocks();
     const bool anchorConverged = out.solverConverged;
@@ -160,7 +158,6 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         instruments_.momentSums(objective_, at_.y.data(), g, nullptr);
         if (!momentsDisagree(analysis, g, startStd, params_.heldFlags())) {
             out.naturalStd = anchorStd;
-            anchor_ = cross;
             return analysis;
         }
     }
@@ -193,7 +190,6 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         if (settled && momentPrecision >= kCrossPreference * anchorPrecision) return analysis;
         params_.setInternal(anchorX);
         out.naturalStd = anchorStd;
-        anchor_ = cross;
         out.solverConverged = anchorConverged;
         return analyse();
     }

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <span>
 
-#include "analysis.h"
 #include "convergence.h"
 #include "uncertainty.h"
 
@@ -39,37 +38,6 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
                 u.seesMaterial ? leaveOneOutScore(scratch.momentJacobian, inverse(indices, indices),
                                                   scratch.moment)
                                : scratch.moment;
-            sum(indices, indices) += m * m.transpose();
-        });
-}
-
-template <int P>
-Eigen::MatrixXd anchorScores(Objective<P>& objective, const std::vector<double>& y,
-                             const Eigen::MatrixXd& gram, const std::vector<bool>& held, bool cross,
-                             double secondSign) {
-    const UsedPixels& prep = objective.pixels();
-    const int sets = objective.setCount();
-    const Eigen::MatrixXd inverse = freeInverse(gram, held);
-    const Eigen::Index size = gram.rows();
-    // Only the pixels that see a material have a term (analyse).
-    return objective.sumPixels(
-        prep.seeingMaterial, Eigen::MatrixXd(Eigen::MatrixXd::Zero(size, size)),
-        [&](std::size_t i, Eigen::MatrixXd& sum, typename Objective<P>::Scratch& scratch) {
-            const UsedPixel& u = prep.pixels[i];
-            std::vector<Eigen::Index>& indices = scratch.indices;
-            indices.clear();
-            for (std::uint32_t s : prep.slotsOf(u))
-                for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
-            Eigen::Vector3d r[2];
-            double rho[2] = {1, 1};
-            for (int k = 0; k < sets; ++k) {
-                r[k] = objective.residual(k, u, y.data(), scratch, true);
-                rho[k] = objective.lossWeight(r[k].squaredNorm());
-            }
-            anchorTerm<P>(scratch.jacobians, r, rho, sets, u.slotCount, cross, scratch.moment,
-                          scratch.momentJacobian, secondSign);
-            const Eigen::VectorXd m =
-                leaveOneOutScore(scratch.momentJacobian, inverse(indices, indices), scratch.moment);
             sum(indices, indices) += m * m.transpose();
         });
 }
@@ -115,13 +83,6 @@ double precision(const ParameterState<P>& params,
 template Eigen::MatrixXd scores<kRgbBlock>(Objective<kRgbBlock>&, const Linearization<kRgbBlock>&,
                                            const Instruments<kRgbBlock>*, const Eigen::MatrixXd&,
                                            const std::vector<bool>&, double);
-template Eigen::MatrixXd anchorScores<kRgbBlock>(Objective<kRgbBlock>&, const std::vector<double>&,
-                                                 const Eigen::MatrixXd&, const std::vector<bool>&,
-                                                 bool, double);
-template Eigen::MatrixXd anchorScores<kGreyBlock>(Objective<kGreyBlock>&,
-                                                  const std::vector<double>&,
-                                                  const Eigen::MatrixXd&, const std::vector<bool>&,
-                                                  bool, double);
 template std::vector<std::vector<double>> naturalStd<kRgbBlock>(const Eigen::MatrixXd&,
                                                                 const Eigen::MatrixXd&,
                                                                 const std::vector<HeldParams>&);

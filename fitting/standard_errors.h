@@ -19,17 +19,6 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
                        const Instruments<P>* instruments, const Eigen::MatrixXd& jacobian,
                        const std::vector<bool>& held, double secondSign = 1);
 
-// The same S for an anchor of the moment solve at y (estimators.cpp): each pixel's anchorTerm,
-// cross products' or (not `cross`) least squares', with its own pull undone; `gram` the sum of
-// the terms' Jacobians (Analysis::crossGram or gram). Analysis::crossScores and
-// leastSquaresScores are these sums without the undoing: where a few pixels hold a parameter, as
-// the pixels that reflect an environment's sun hold ks, those understate its variance several
-// times. `secondSign` as scores'.
-template <int P>
-Eigen::MatrixXd anchorScores(Objective<P>& objective, const std::vector<double>& y,
-                             const Eigen::MatrixXd& gram, const std::vector<bool>& held, bool cross,
-                             double secondSign = 1);
-
 // Standard errors per block of its natural parameters from the sandwich with these sums; 0 for
 // the `held` ones.
 template <int P>
