@@ -8,9 +8,29 @@
 namespace phongfit {
 
 template <int P>
+void anchorTerm(const PixelJacobians<P>& j, const Eigen::Vector3d (&r)[2], const double (&rho)[2],
+                int sets, std::uint32_t slotCount, bool cross, Eigen::VectorXd& term,
+                Eigen::MatrixXd& jacobian, double secondSign) {
+    const Eigen::Index n = Eigen::Index(slotCount) * P;
+    term.setZero(n);
+    jacobian.setZero(n, n);
+    for (std::uint32_t a = 0; a < slotCount; ++a) {
+        auto t = term.segment<P>(Eigen::Index(a) * P);
+        for (int k = 0; k < sets; ++k) {
+            // Least squares: set k's own Jacobian and residual; cross products: the other's.
+            const int other = cross ? 1 - k : k;
+            const double w = cross ? 0.5 : rho[k] / sets;
+            addPackedGradient<P>(t, k == 1 ? secondSign * w : w, j[k][a], r[other]);
+            for (std::uint32_t b = 0; b < slotCount; ++b)
+                addPackedGram<P>(jacobian.block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P), w,
+                                 j[k][a], j[other][b]);
+        }
+    }
+}
+
+template <int P>
 Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
                  const Instruments<P>* instruments, Linearization<P>& at) {
-    using Jacobian = Eigen::Matrix<double, 3, P>;
     const UsedPixels& prep = objective.pixels();
     const std::vector<double> y = params.naturalCoordinates();
     const int sets = objective.setCount();
@@ -30,51 +50,34 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
             const std::span<const std::uint32_t> slots = prep.slotsOf(u);
             const auto where = [&](std::uint32_t a) { return Eigen::Index(slots[a]) * P; };
             Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-            Eigen::VectorXd& l = scratch.moment;
-            l.setZero(Eigen::Index(u.slotCount) * P);
             Eigen::Vector3d r[2];
+            double rho[2] = {1, 1};
             for (int k = 0; k < sets; ++k) {
                 r[k] = objective.residual(k, u, y.data(), scratch, true);
-                const std::vector<Jacobian>& j = scratch.jacobians[k];
-                const double rho = objective.lossWeight(r[k].squaredNorm());
+                rho[k] = objective.lossWeight(r[k].squaredNorm());
                 at.residuals[k][i] = r[k].cast<float>();
-                at.weights[k][i] = float(rho);
+                at.weights[k][i] = float(rho[k]);
                 mean += r[k] / sets;
-                for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                    addPackedGradient<P>(l.segment<P>(Eigen::Index(a) * P), rho / sets, j[a], r[k]);
-                    for (std::uint32_t b = 0; u.seesMaterial && b < u.slotCount; ++b)
-                        addPackedGram<P>(sum.gram.block<P, P>(where(a), where(b)), rho / sets, j[a],
-                                         j[b]);
-                }
             }
             if (!u.seesMaterial) return;
             sum.squares += mean.squaredNorm() / std::pow(objective.weight(u), 2);
-            for (std::uint32_t a = 0; a < u.slotCount; ++a)
-                for (std::uint32_t b = 0; b < u.slotCount; ++b)
-                    sum.leastSquaresScores.block<P, P>(where(a), where(b)) +=
-                        l.segment<P>(Eigen::Index(a) * P) *
-                        l.segment<P>(Eigen::Index(b) * P).transpose();
-            if (sets == 2) {
-                Eigen::VectorXd& c = scratch.cross;
-                c.setZero(Eigen::Index(u.slotCount) * P);
-                const std::vector<Jacobian>& ja = scratch.jacobians[0];
-                const std::vector<Jacobian>& jb = scratch.jacobians[1];
-                for (std::uint32_t a = 0; a < u.slotCount; ++a) {
-                    addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, ja[a], r[1]);
-                    addPackedGradient<P>(c.segment<P>(Eigen::Index(a) * P), 0.5, jb[a], r[0]);
-                    for (std::uint32_t b = 0; b < u.slotCount; ++b) {
-                        addPackedGram<P>(sum.crossGram.block<P, P>(where(a), where(b)), 0.5, ja[a],
-                                         jb[b]);
-                        addPackedGram<P>(sum.crossGram.block<P, P>(where(a), where(b)), 0.5, jb[a],
-                                         ja[b]);
-                    }
-                }
+            // Each anchor's term and its Jacobian, into its scores and gram.
+            const auto add = [&](bool cross, Eigen::MatrixXd& scores, Eigen::MatrixXd& gram) {
+                anchorTerm<P>(scratch.jacobians, r, rho, sets, u.slotCount, cross, scratch.moment,
+                              scratch.momentJacobian);
+                const Eigen::VectorXd& l = scratch.moment;
                 for (std::uint32_t a = 0; a < u.slotCount; ++a)
-                    for (std::uint32_t b = 0; b < u.slotCount; ++b)
-                        sum.crossScores.block<P, P>(where(a), where(b)) +=
-                            c.segment<P>(Eigen::Index(a) * P) *
-                            c.segment<P>(Eigen::Index(b) * P).transpose();
-            }
+                    for (std::uint32_t b = 0; b < u.slotCount; ++b) {
+                        gram.block<P, P>(where(a), where(b)) +=
+                            scratch.momentJacobian.template block<P, P>(Eigen::Index(a) * P,
+                                                                        Eigen::Index(b) * P);
+                        scores.block<P, P>(where(a), where(b)) +=
+                            l.segment<P>(Eigen::Index(a) * P) *
+                            l.segment<P>(Eigen::Index(b) * P).transpose();
+                    }
+            };
+            add(false, sum.leastSquaresScores, sum.gram);
+            if (sets == 2) add(true, sum.crossScores, sum.crossGram);
             if (!moments) return;
             pixelMoment<P>(at, &scratch.jacobians, instruments, sets, i, u, scratch.moment,
                            &scratch.momentJacobian);
@@ -89,6 +92,13 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
     return result;
 }
 
+template void anchorTerm<kRgbBlock>(const PixelJacobians<kRgbBlock>&, const Eigen::Vector3d (&)[2],
+                                    const double (&)[2], int, std::uint32_t, bool, Eigen::VectorXd&,
+                                    Eigen::MatrixXd&, double);
+template void anchorTerm<kGreyBlock>(const PixelJacobians<kGreyBlock>&,
+                                     const Eigen::Vector3d (&)[2], const double (&)[2], int,
+                                     std::uint32_t, bool, Eigen::VectorXd&, Eigen::MatrixXd&,
+                                     double);
 template Analysis analyse<kRgbBlock>(Objective<kRgbBlock>&, const ParameterState<kRgbBlock>&,
                                      const Instruments<kRgbBlock>*, Linearization<kRgbBlock>&);
 template Analysis analyse<kGreyBlock>(Objective<kGreyBlock>&, const ParameterState<kGreyBlock>&,

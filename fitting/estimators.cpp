@@ -120,6 +120,7 @@ Analysis RoundSolver<P>::solveLeastSquares(RoundOutcome& out) {
 template <int P>
 Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     const std::vector<double> before = params_.internal();
+    anchor_.reset();
     account(out, minimizeLeastSquares(objective_, params_, leastSquaresWeights_, true, options_));
     const std::vector<double> y = params_.naturalCoordinates();
     double crossSum = 0;
@@ -141,9 +142,10 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     projectOntoFace(cross);
     const std::vector<double> anchorX = params_.internal();
     Analysis analysis = analyse();
-    const std::vector<std::vector<double>> anchorStd =
-        cross ? naturalStd(analysis.crossGram, analysis.crossScores)
-              : naturalStd(analysis.gram, analysis.leastSquaresScores);
+    const std::vector<std::vector<double>> anchorStd = naturalStd(
+        cross ? analysis.crossGram : analysis.gram,
+        anchorScores<P>(objective_, params_.naturalCoordinates(),
+                        cross ? analysis.crossScores : analysis.leastSquaresScores, cross));
     instruments_.adopt(objective_, at_);
     std::vector<Eigen::Matrix<double, P, 1>> instrumentPoint = params_.naturalBlocks();
     const bool anchorConverged = out.solverConverged;
@@ -158,6 +160,7 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         instruments_.momentSums(objective_, at_.y.data(), g, nullptr);
         if (!momentsDisagree(analysis, g, startStd, params_.heldFlags())) {
             out.naturalStd = anchorStd;
+            anchor_ = cross;
             return analysis;
         }
     }
@@ -190,6 +193,7 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         if (settled && momentPrecision >= kCrossPreference * anchorPrecision) return analysis;
         params_.setInternal(anchorX);
         out.naturalStd = anchorStd;
+        anchor_ = cross;
         out.solverConverged = anchorConverged;
         return analyse();
     }

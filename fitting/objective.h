@@ -41,7 +41,6 @@ public:
         Eigen::VectorXd moment;                          // P per slot of the pixel
         Eigen::MatrixXd momentJacobian;
         std::vector<Eigen::Index> indices;  // of the pixel's natural coordinates
-        Eigen::VectorXd cross;
     };
 
     // `instrumental`: replay both recordings (else the least-squares sets); `radius`: see

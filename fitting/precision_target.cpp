@@ -11,15 +11,22 @@ template <int P>
 std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const Linearization<P>& at,
                                                 const Instruments<P>* instruments,
                                                 const Analysis& analysis,
-                                                const std::vector<HeldParams>& held) {
+                                                const std::vector<HeldParams>& held,
+                                                std::optional<bool> anchor) {
     std::vector<std::vector<double>> share(held.size(), std::vector<double>(P, 0.0));
     if (instruments == nullptr || objective.setCount() < 2) return share;
-    const Eigen::MatrixXd fromPathsScores = scores(objective, at, instruments, analysis.jacobian,
-                                                   ParameterState<P>::heldFlags(held), -1);
-    const std::vector<std::vector<double>> all = naturalStd<P>(analysis.jacobian, analysis.scores,
-                                                               held),
-                                           fromPaths = naturalStd<P>(analysis.jacobian,
-                                                                     fromPathsScores, held);
+    const std::vector<bool> flags = ParameterState<P>::heldFlags(held);
+    const Eigen::MatrixXd& jacobian = !anchor   ? analysis.jacobian
+                                      : *anchor ? analysis.crossGram
+                                                : analysis.gram;
+    const auto sandwich = [&](double secondSign) {
+        if (!anchor) return scores(objective, at, instruments, jacobian, flags, secondSign);
+        return anchorScores(objective, at.y,
+                            *anchor ? analysis.crossScores : analysis.leastSquaresScores, *anchor,
+                            secondSign < 0);
+    };
+    const std::vector<std::vector<double>> all = naturalStd<P>(jacobian, sandwich(1), held),
+                                           fromPaths = naturalStd<P>(jacobian, sandwich(-1), held);
     for (std::size_t b = 0; b < all.size(); ++b)
         for (std::size_t i = 0; i < all[b].size(); ++i)
             share[b][i] =
@@ -91,14 +98,12 @@ bool movedPastTarget(const ParameterState<P>& params,
     return false;
 }
 
-template std::vector<std::vector<double>> recordingShare<kRgbBlock>(Objective<kRgbBlock>&,
-                                                                    const Linearization<kRgbBlock>&,
-                                                                    const Instruments<kRgbBlock>*,
-                                                                    const Analysis&,
-                                                                    const std::vector<HeldParams>&);
+template std::vector<std::vector<double>> recordingShare<kRgbBlock>(
+    Objective<kRgbBlock>&, const Linearization<kRgbBlock>&, const Instruments<kRgbBlock>*,
+    const Analysis&, const std::vector<HeldParams>&, std::optional<bool>);
 template std::vector<std::vector<double>> recordingShare<kGreyBlock>(
     Objective<kGreyBlock>&, const Linearization<kGreyBlock>&, const Instruments<kGreyBlock>*,
-    const Analysis&, const std::vector<HeldParams>&);
+    const Analysis&, const std::vector<HeldParams>&, std::optional<bool>);
 template PrecisionPlan planPrecision<kRgbBlock>(const ParameterState<kRgbBlock>&,
                                                 const std::vector<std::vector<double>>&,
                                                 const std::vector<std::vector<double>>&, double,

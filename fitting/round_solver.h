@@ -3,6 +3,7 @@
 // unconstrained is held and the problem solved again, until nothing more is held.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "analysis.h"
@@ -84,6 +85,8 @@ private:
     Linearization<P> at_;  // at the last analysis
     Instruments<P> instruments_;
     std::vector<double> leastSquaresWeights_;  // per pixel; empty: all 1
+    // Where the last solve kept an anchor of the moments: cross products (true) or least squares.
+    std::optional<bool> anchor_;
 };
 
 extern template class RoundSolver<kRgbBlock>;

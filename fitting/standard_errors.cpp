@@ -1,9 +1,11 @@
 #include "standard_errors.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <span>
 
+#include "analysis.h"
 #include "convergence.h"
 #include "uncertainty.h"
 
@@ -40,6 +42,38 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
                                : scratch.moment;
             sum(indices, indices) += m * m.transpose();
         });
+}
+
+template <int P>
+Eigen::MatrixXd anchorScores(Objective<P>& objective, const std::vector<double>& y,
+                             const Eigen::MatrixXd& fitted, bool cross, bool recordingsOnly) {
+    const UsedPixels& prep = objective.pixels();
+    const int sets = objective.setCount();
+    const Eigen::Index size = fitted.rows();
+    if (sets < 2) return recordingsOnly ? Eigen::MatrixXd::Zero(size, size) : fitted;
+    // Only the pixels that see a material have a term (analyse).
+    const Eigen::MatrixXd recordings = objective.sumPixels(
+        prep.seeingMaterial, Eigen::MatrixXd(Eigen::MatrixXd::Zero(size, size)),
+        [&](std::size_t i, Eigen::MatrixXd& sum, typename Objective<P>::Scratch& scratch) {
+            const UsedPixel& u = prep.pixels[i];
+            std::vector<Eigen::Index>& indices = scratch.indices;
+            indices.clear();
+            for (std::uint32_t s : prep.slotsOf(u))
+                for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
+            Eigen::Vector3d r[2];
+            double rho[2] = {1, 1};
+            for (int k = 0; k < sets; ++k) {
+                r[k] = objective.residual(k, u, y.data(), scratch, true);
+                rho[k] = objective.lossWeight(r[k].squaredNorm());
+            }
+            anchorTerm<P>(scratch.jacobians, r, rho, sets, u.slotCount, cross, scratch.moment,
+                          scratch.momentJacobian, -1);
+            sum(indices, indices) += scratch.moment * scratch.moment.transpose();
+        });
+    if (recordingsOnly) return recordings;
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> excess(recordings - fitted);
+    return fitted + excess.eigenvectors() * excess.eigenvalues().cwiseMax(0.0).asDiagonal() *
+                        excess.eigenvectors().transpose();
 }
 
 template <int P>
@@ -83,6 +117,11 @@ double precision(const ParameterState<P>& params,
 template Eigen::MatrixXd scores<kRgbBlock>(Objective<kRgbBlock>&, const Linearization<kRgbBlock>&,
                                            const Instruments<kRgbBlock>*, const Eigen::MatrixXd&,
                                            const std::vector<bool>&, double);
+template Eigen::MatrixXd anchorScores<kRgbBlock>(Objective<kRgbBlock>&, const std::vector<double>&,
+                                                 const Eigen::MatrixXd&, bool, bool);
+template Eigen::MatrixXd anchorScores<kGreyBlock>(Objective<kGreyBlock>&,
+                                                  const std::vector<double>&,
+                                                  const Eigen::MatrixXd&, bool, bool);
 template std::vector<std::vector<double>> naturalStd<kRgbBlock>(const Eigen::MatrixXd&,
                                                                 const Eigen::MatrixXd&,
                                                                 const std::vector<HeldParams>&);

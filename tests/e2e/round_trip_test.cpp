@@ -14,6 +14,7 @@
 #include <optional>
 #include <random>
 #include <tuple>
+#include <utility>
 
 #include "image.h"
 #include "precision_claim.h"
@@ -271,10 +272,13 @@ TEST_F(RoundTrip, ASubPixelHighlightsNoiseWhereTheLobeIsSharperReachesIt) {
 // The Cornell box under its area light at 96 x 96 (kd 0.746, 0.601, 0.392, ks 0.245, n 4475; 256
 // paths a pixel), from n 44.75: the rounds converged at n 380 +- 182 after a round of 16 times the
 // first's paths, the probe from 1600 at half the first's paths came back to 158 +- 66, and the fit
-// ended n 380 +- 410, the truth 10 standard errors off. That probe's return was its few paths'
-// pull towards the broad lobes they reach (pulledBroader); probed again with the converged round's
-// paths it stays sharp, and the truth is within the standard errors.
-TEST_F(RoundTrip, AProbePulledBroaderByItsFewPathsIsRecordedAgainWithTheRoundsPaths) {
+// ended n 380 +- 410, the truth 10 standard errors off. That probe's return was its few paths' pull
+// towards the broad lobes they reach (pulledBroader), and it was probed again with the converged
+// round's paths. Since the anchors' standard errors take the recordings' part (sessions 85-86) no
+// round claims n resolved this early: at 16 times the first's paths the round says n 2833 +- 5958,
+// most of it the image's noise, and the fit ends "unresolved" (in 25 recording seeds, and 3 each on
+// 8 more images, no probe was pulled; pulledBroader's own test keeps the case).
+TEST_F(RoundTrip, AnAreaLitLobeTheRoundsDoNotResolveIsSaidToBeUnresolved) {
     const std::map<std::string, std::string> truth = {
         {"width", "96"},    {"height", "96"}, {"kd", "0.746232,0.601046,0.392068"},
         {"ks", "0.245421"}, {"n", "4475.37"}, {"spp", "256"},
@@ -282,13 +286,12 @@ TEST_F(RoundTrip, AProbePulledBroaderByItsFewPathsIsRecordedAgainWithTheRoundsPa
     const std::string cornell = PHONGFIT_SCENES_DIR "/cornell_area.xml";
     const std::string image = render(cornell, truth, "pulled", 256, "0");
     const auto report = fitFromFar(cornell + ":" + image, truth);
-    const nlohmann::json& rounds = report["rounds"];
-    EXPECT_GE(std::count_if(rounds.begin(), rounds.end(),
-                            [](const nlohmann::json& r) { return r["probe"].get<bool>(); }),
-              2)
-        << rounds;
-    expectCovered(report["materials"]["sphere"], {0.746232, 0.601046, 0.392068},
-                  {0.245421, 0.245421, 0.245421}, 4475.37, "pulled probe");
+    EXPECT_EQ(report["stop_reason"], "unresolved");
+    EXPECT_FALSE(report["converged"].get<bool>());
+    const nlohmann::json& m = report["materials"]["sphere"];
+    EXPECT_GE(m["n_std"].get<double>(), m["n"].get<double>());
+    expectCovered(m, {0.746232, 0.601046, 0.392068}, {0.245421, 0.245421, 0.245421}, 4475.37,
+                  "area-lit lobe");
 }
 
 // The Cornell box under its 5-degree area light at 128 x 128, tent-filtered (kd 0.236, 0.601,
@@ -503,16 +506,26 @@ TEST_F(RoundTrip, AreaLightSharpLobeIsFoundWithAdaptivePaths) {
 // The recovery matrix's sphere under the 40-degree light, with a lobe far narrower than a pixel's
 // reach (n 30000, at 128 x 128; largeLightSphere): the pixels at the edge of the light's
 // reflection hold n, and once they carry the most paths a recording gives a pixel, more paths
-// cannot meet the precision. The fit ends there ("path cap"), before the rounds run out, not
-// converged, with the truth within 3 standard errors.
+// cannot meet the precision. The fit ends there, before the rounds run out, not converged, with the
+// truth within 3 standard errors: at recording seed 3 "path cap" (the paths still hold most of n's
+// variance, but the pixels cannot take more); at seed 5 (the seed this test ran alone until the
+// anchors' standard errors took the recordings' part, sessions 85-86) "unresolved": at 16 times
+// the first round's paths the image's noise holds the larger part of n's variance, and n's standard
+// error is larger than n (49635 +- 611943 in its last round).
 TEST_F(RoundTrip, LobeHeldByPixelsAtTheirPathCapEndsThere) {
     const LargeLightCase c = largeLightSphere("0.45", "0.5", "wide", 256);
-    const auto report = fit({c.view}, c.extra, "fit", 5);
-    EXPECT_EQ(report["stop_reason"], "path cap");
-    EXPECT_LT(report["rounds"].size(), 6u);
-    EXPECT_FALSE(report["converged"].get<bool>());
-    expectCovered(report["materials"]["sphere"], {0.45, 0.45, 0.45}, {0.5, 0.5, 0.5}, 30000,
-                  "40-degree light, n 30000");
+    for (const auto& [seed, stop] : {std::pair{3, "path cap"}, std::pair{5, "unresolved"}}) {
+        const auto report = fit({c.view}, c.extra, "fit" + std::to_string(seed), seed);
+        EXPECT_EQ(report["stop_reason"], stop) << seed;
+        EXPECT_LT(report["rounds"].size(), 6u) << seed;
+        EXPECT_FALSE(report["converged"].get<bool>()) << seed;
+        const nlohmann::json& m = report["materials"]["sphere"];
+        if (std::string(stop) == "unresolved") {
+            EXPECT_GE(m["n_std"].get<double>(), m["n"].get<double>()) << seed;
+        }
+        expectCovered(m, {0.45, 0.45, 0.45}, {0.5, 0.5, 0.5}, 30000,
+                      "40-degree light, n 30000, seed " + std::to_string(seed));
+    }
 }
 
 // The same scene rendered at 1024 paths, with the light sampled as before rings
@@ -712,25 +725,51 @@ TEST_F(RoundTrip, AFaintBroadLobeIsFoundFromASharpStart) {
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(m["kd"][c].get<double>(), 0.5, 0.0025) << c;
 }
 
-// Seed 88's c014 (random round trips): a sharp lobe under the Kerner probe at 128 x 128, its image
-// from 1024 Sobol points a pixel. ks's noise in the image sits in the few pixels that reflect the
-// probe's sun (up to 56 where the sphere is 0.1-0.7); none holds a quarter of ks's information, and
-// the model's kappa, read off smooth pixels that Sobol points render almost without noise, put
-// ks's image noise at 0.0019. Images at six seeds scatter by 0.0033 (their means over recording
-// seeds). At this image seed and recording seed 0 the fit said ks 0.3657 +- 0.0019, 3.4 of them
-// off, until the sun's brightest pixels were rendered anew (kHeldShare a twentieth): +- 0.0032.
+// Seed 88's c014 (random round trips): a sharp lobe under the Kerner probe at 128 x 128.
+const std::map<std::string, std::string> kProbeSunTruth = {
+    {"kd", "0.350056"}, {"ks", "0.37232"}, {"n", "6198.62"}, {"width", "128"}, {"height", "128"}};
+
+// c014's image from 1024 Sobol points a pixel. ks's noise in the image sits in the few pixels that
+// reflect the probe's sun (up to 56 where the sphere is 0.1-0.7); none holds a quarter of ks's
+// information, and the model's kappa, read off smooth pixels that Sobol points render almost
+// without noise, put ks's image noise at 0.0019. Images at six seeds scatter by 0.0033 (their means
+// over recording seeds). At this image seed and recording seed 0 the fit said ks 0.3657 +-
+// 0.0019, 3.4 of them off, until the sun's brightest pixels were rendered anew (kHeldShare a
+// twentieth): +- 0.0032.
 TEST_F(RoundTrip, ASharpLobeReflectingTheProbesSunTakesTheNoiseOfThosePixels) {
-    const std::map<std::string, std::string> truth = {{"kd", "0.350056"},
-                                                      {"ks", "0.37232"},
-                                                      {"n", "6198.62"},
-                                                      {"width", "128"},
-                                                      {"height", "128"}};
+    const std::map<std::string, std::string>& truth = kProbeSunTruth;
     const std::string image = render(kEnvmap, truth, "sun", 1024, "5");
     const auto m = fitFromFar(kEnvmap + ":" + image, truth)["materials"]["sphere"];
     for (int c = 0; c < 3; ++c) {
         EXPECT_GT(m["image_noise_std"]["ks"][c].get<double>(), 0.0028) << "channel " << c;
         EXPECT_LT(std::abs(m["ks"][c].get<double>() - 0.37232), 3 * m["ks_std"][c].get<double>())
             << m["ks"][c].get<double>() << " +- " << m["ks_std"][c].get<double>();
+    }
+}
+
+// One round of the image above at the truth, 32 paths a pixel: its estimate is mostly an anchor of
+// the moments (cross products, or pooled least squares), whose standard errors took each pixel's
+// score as fitted. The pixels reflecting the sun hold ks, and each pulls the estimate towards
+// itself, shrinking its own score: at recording seeds 5, 6 and 9 the round said ks 0.4275 +-
+// 0.0084, 0.4123 +- 0.0038 and 0.4481 +- 0.0120, 6.6, 10.4 and 6.3 of them off (rms 2.98 over 30
+// seeds). With the recordings' part of each pixel's term added where it says more (anchorScores:
+// the image's noise cancels in it, and no fit absorbs it), rms 0.97 (kd 0.90, log n 0.82): seeds 5
+// and 6 say 0.4275 +- 0.064 and 0.4123 +- 0.115, and seed 9 keeps the moments, 0.3718 +- 0.0011.
+TEST_F(RoundTrip, ARoundsStandardErrorsUnderTheProbesSunCoverItsRecordingsNoise) {
+    const std::map<std::string, std::string>& truth = kProbeSunTruth;
+    const std::string image = render(kEnvmap, truth, "sun", 1024, "5");
+    // From the truth: the scene's defaults.
+    std::vector<std::string> extra = defines(truth);
+    extra.insert(extra.end(), {"--spp", "32", "--rounds", "1"});
+    for (int seed : {5, 6, 9}) {
+        const auto report = fit({kEnvmap + ":" + image}, extra, "fit" + std::to_string(seed), seed);
+        const auto& m = report["rounds"][0]["materials"]["sphere"];
+        for (const char* p : {"kd", "ks"})
+            for (int c = 0; c < 3; ++c)
+                EXPECT_LT(std::abs(m[p][c].get<double>() - std::stod(truth.at(p))),
+                          3 * m[std::string(p) + "_std"][c].get<double>())
+                    << "seed " << seed << ": " << p << "[" << c << "] " << m[p][c].get<double>()
+                    << " +- " << m[std::string(p) + "_std"][c].get<double>();
     }
 }
 
