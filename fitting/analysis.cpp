@@ -10,10 +10,10 @@ namespace phongfit {
 template <int P>
 void anchorTerm(const PixelJacobians<P>& j, const Eigen::Vector3d (&r)[2], const double (&rho)[2],
                 int sets, std::uint32_t slotCount, bool cross, Eigen::VectorXd& term,
-                Eigen::MatrixXd& jacobian, double secondSign) {
+                Eigen::MatrixXd* jacobian, double secondSign) {
     const Eigen::Index n = Eigen::Index(slotCount) * P;
     term.setZero(n);
-    jacobian.setZero(n, n);
+    if (jacobian != nullptr) jacobian->setZero(n, n);
     for (std::uint32_t a = 0; a < slotCount; ++a) {
         auto t = term.segment<P>(Eigen::Index(a) * P);
         for (int k = 0; k < sets; ++k) {
@@ -21,8 +21,8 @@ void anchorTerm(const PixelJacobians<P>& j, const Eigen::Vector3d (&r)[2], const
             const int other = cross ? 1 - k : k;
             const double w = cross ? 0.5 : rho[k] / sets;
             addPackedGradient<P>(t, k == 1 ? secondSign * w : w, j[k][a], r[other]);
-            for (std::uint32_t b = 0; b < slotCount; ++b)
-                addPackedGram<P>(jacobian.block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P), w,
+            for (std::uint32_t b = 0; jacobian != nullptr && b < slotCount; ++b)
+                addPackedGram<P>(jacobian->block<P, P>(Eigen::Index(a) * P, Eigen::Index(b) * P), w,
                                  j[k][a], j[other][b]);
         }
     }
@@ -64,7 +64,7 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
             // Each anchor's term and its Jacobian, into its scores and gram.
             const auto add = [&](bool cross, Eigen::MatrixXd& scores, Eigen::MatrixXd& gram) {
                 anchorTerm<P>(scratch.jacobians, r, rho, sets, u.slotCount, cross, scratch.moment,
-                              scratch.momentJacobian);
+                              &scratch.momentJacobian);
                 const Eigen::VectorXd& l = scratch.moment;
                 for (std::uint32_t a = 0; a < u.slotCount; ++a)
                     for (std::uint32_t b = 0; b < u.slotCount; ++b) {
@@ -94,10 +94,10 @@ Analysis analyse(Objective<P>& objective, const ParameterState<P>& params,
 
 template void anchorTerm<kRgbBlock>(const PixelJacobians<kRgbBlock>&, const Eigen::Vector3d (&)[2],
                                     const double (&)[2], int, std::uint32_t, bool, Eigen::VectorXd&,
-                                    Eigen::MatrixXd&, double);
+                                    Eigen::MatrixXd*, double);
 template void anchorTerm<kGreyBlock>(const PixelJacobians<kGreyBlock>&,
                                      const Eigen::Vector3d (&)[2], const double (&)[2], int,
-                                     std::uint32_t, bool, Eigen::VectorXd&, Eigen::MatrixXd&,
+                                     std::uint32_t, bool, Eigen::VectorXd&, Eigen::MatrixXd*,
                                      double);
 template Analysis analyse<kRgbBlock>(Objective<kRgbBlock>&, const ParameterState<kRgbBlock>&,
                                      const Instruments<kRgbBlock>*, Linearization<kRgbBlock>&);

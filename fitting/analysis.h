@@ -40,13 +40,13 @@ struct Analysis {
 // A pixel's term of an anchor's estimating equations (estimators.cpp), over its slots, and the
 // term's Jacobian: least squares' l = sum over the sets of rho'_k / sets J_k^T r_k, Jacobian
 // sum rho'_k / sets J_k^T J_k, or (`cross`, two sets) the cross products' c = (J_A^T r_B + J_B^T
-// r_A) / 2, Jacobian (J_A^T J_B + J_B^T J_A) / 2. `j` and `r`: the pixel's weighted Jacobians and
-// residuals per set, `rho` their robust loss weights. `secondSign` -1 negates the second set's part
-// of the term (not of its Jacobian), as pixelMoment's.
+// r_A) / 2, Jacobian (J_A^T J_B + J_B^T J_A) / 2 (if `jacobian` is not null). `j` and `r`: the
+// pixel's weighted Jacobians and residuals per set, `rho` their robust loss weights. `secondSign`
+// -1 negates the second set's part of the term (not of its Jacobian), as pixelMoment's.
 template <int P>
 void anchorTerm(const PixelJacobians<P>& j, const Eigen::Vector3d (&r)[2], const double (&rho)[2],
                 int sets, std::uint32_t slotCount, bool cross, Eigen::VectorXd& term,
-                Eigen::MatrixXd& jacobian, double secondSign = 1);
+                Eigen::MatrixXd* jacobian, double secondSign = 1);
 
 // The sums at `params`' current point. Keeps each set's Jacobians, residuals and loss weights
 // there in `at`: the next instruments, and what the scores are computed from. `instruments`:

@@ -142,10 +142,12 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
     projectOntoFace(cross);
     const std::vector<double> anchorX = params_.internal();
     Analysis analysis = analyse();
-    const std::vector<std::vector<double>> anchorStd = naturalStd(
-        cross ? analysis.crossGram : analysis.gram,
-        anchorScores<P>(objective_, params_.naturalCoordinates(),
-                        cross ? analysis.crossScores : analysis.leastSquaresScores, cross));
+    AnchorSandwich anchor{cross, anchorRecordingScores<P>(objective_, params_.naturalCoordinates(),
+                                                          analysis.gram.rows(), cross)};
+    const std::vector<std::vector<double>> anchorStd =
+        naturalStd(cross ? analysis.crossGram : analysis.gram,
+                   anchorScores(cross ? analysis.crossScores : analysis.leastSquaresScores,
+                                anchor.recordings));
     instruments_.adopt(objective_, at_);
     std::vector<Eigen::Matrix<double, P, 1>> instrumentPoint = params_.naturalBlocks();
     const bool anchorConverged = out.solverConverged;
@@ -160,7 +162,7 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         instruments_.momentSums(objective_, at_.y.data(), g, nullptr);
         if (!momentsDisagree(analysis, g, startStd, params_.heldFlags())) {
             out.naturalStd = anchorStd;
-            anchor_ = cross;
+            anchor_ = std::move(anchor);
             return analysis;
         }
     }
@@ -193,7 +195,7 @@ Analysis RoundSolver<P>::solveInstrumental(RoundOutcome& out) {
         if (settled && momentPrecision >= kCrossPreference * anchorPrecision) return analysis;
         params_.setInternal(anchorX);
         out.naturalStd = anchorStd;
-        anchor_ = cross;
+        anchor_ = std::move(anchor);
         out.solverConverged = anchorConverged;
         return analyse();
     }

@@ -12,21 +12,25 @@ std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const L
                                                 const Instruments<P>* instruments,
                                                 const Analysis& analysis,
                                                 const std::vector<HeldParams>& held,
-                                                std::optional<bool> anchor) {
+                                                const AnchorSandwich* anchor) {
     std::vector<std::vector<double>> share(held.size(), std::vector<double>(P, 0.0));
     if (instruments == nullptr || objective.setCount() < 2) return share;
     const std::vector<bool> flags = ParameterState<P>::heldFlags(held);
-    const Eigen::MatrixXd& jacobian = !anchor   ? analysis.jacobian
-                                      : *anchor ? analysis.crossGram
-                                                : analysis.gram;
-    const auto sandwich = [&](double secondSign) {
-        if (!anchor) return scores(objective, at, instruments, jacobian, flags, secondSign);
-        return anchorScores(objective, at.y,
-                            *anchor ? analysis.crossScores : analysis.leastSquaresScores, *anchor,
-                            secondSign < 0);
-    };
-    const std::vector<std::vector<double>> all = naturalStd<P>(jacobian, sandwich(1), held),
-                                           fromPaths = naturalStd<P>(jacobian, sandwich(-1), held);
+    const Eigen::MatrixXd& jacobian = anchor == nullptr ? analysis.jacobian
+                                      : anchor->cross   ? analysis.crossGram
+                                                        : analysis.gram;
+    const std::vector<std::vector<double>> all = naturalStd<P>(
+        jacobian,
+        anchor == nullptr
+            ? scores(objective, at, instruments, jacobian, flags, 1)
+            : anchorScores(anchor->cross ? analysis.crossScores : analysis.leastSquaresScores,
+                           anchor->recordings),
+        held);
+    const std::vector<std::vector<double>> fromPaths =
+        naturalStd<P>(jacobian,
+                      anchor == nullptr ? scores(objective, at, instruments, jacobian, flags, -1)
+                                        : anchor->recordings,
+                      held);
     for (std::size_t b = 0; b < all.size(); ++b)
         for (std::size_t i = 0; i < all[b].size(); ++i)
             share[b][i] =
@@ -100,10 +104,10 @@ bool movedPastTarget(const ParameterState<P>& params,
 
 template std::vector<std::vector<double>> recordingShare<kRgbBlock>(
     Objective<kRgbBlock>&, const Linearization<kRgbBlock>&, const Instruments<kRgbBlock>*,
-    const Analysis&, const std::vector<HeldParams>&, std::optional<bool>);
+    const Analysis&, const std::vector<HeldParams>&, const AnchorSandwich*);
 template std::vector<std::vector<double>> recordingShare<kGreyBlock>(
     Objective<kGreyBlock>&, const Linearization<kGreyBlock>&, const Instruments<kGreyBlock>*,
-    const Analysis&, const std::vector<HeldParams>&, std::optional<bool>);
+    const Analysis&, const std::vector<HeldParams>&, const AnchorSandwich*);
 template PrecisionPlan planPrecision<kRgbBlock>(const ParameterState<kRgbBlock>&,
                                                 const std::vector<std::vector<double>>&,
                                                 const std::vector<std::vector<double>>&, double,

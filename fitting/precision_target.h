@@ -6,7 +6,6 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
-#include <optional>
 #include <vector>
 
 #include "analysis.h"
@@ -14,6 +13,7 @@
 #include "instruments.h"
 #include "objective.h"
 #include "parameter_state.h"
+#include "standard_errors.h"
 
 namespace phongfit {
 
@@ -46,15 +46,14 @@ double precisionScale(int i, double value) {
 // the same sandwich as the standard errors' with each pixel's moment W_B Z_B^T r_A + W_A Z_A^T r_B
 // replaced by W_B Z_B^T r_A - W_A Z_A^T r_B, in which the image's noise cancels and the
 // recordings' stays. 0 without instruments or with fewer than two sets: exact or pooled sets
-// leave no difference to measure it by. Where the solution is an anchor of the moments instead,
-// `anchor` (cross products: true, least squares: false), from that anchor's sandwich
-// (anchorScores) with the second set's part negated the same way.
+// leave no difference to measure it by. Where the solution is an anchor of the moments instead
+// (`anchor`), from that anchor's sandwich (anchorScores) and its recordings' part alone.
 template <int P>
 std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const Linearization<P>& at,
                                                 const Instruments<P>* instruments,
                                                 const Analysis& analysis,
                                                 const std::vector<HeldParams>& held,
-                                                std::optional<bool> anchor);
+                                                const AnchorSandwich* anchor);
 
 struct PrecisionPlan {
     bool met = false;       // every free parameter's relative standard error is at most the target

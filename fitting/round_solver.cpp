@@ -103,7 +103,7 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out, const FreeExponents* free) 
     }
     if (options_.precision > 0)
         out.pathShare = recordingShare(objective_, at_, instrumental_ ? &instruments_ : nullptr,
-                                       analysis_, params_.held(), anchor_);
+                                       analysis_, params_.held(), anchor_ ? &*anchor_ : nullptr);
     // Each solve makes its own instruments (as the round's first does, from none): they are not
     // held through the image noise's sums.
     instruments_ = {};

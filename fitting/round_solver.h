@@ -13,6 +13,7 @@
 #include "objective.h"
 #include "parameter_state.h"
 #include "round_outcome.h"
+#include "standard_errors.h"
 
 namespace phongfit {
 
@@ -85,8 +86,8 @@ private:
     Linearization<P> at_;  // at the last analysis
     Instruments<P> instruments_;
     std::vector<double> leastSquaresWeights_;  // per pixel; empty: all 1
-    // Where the last solve kept an anchor of the moments: cross products (true) or least squares.
-    std::optional<bool> anchor_;
+    // Where the last solve kept an anchor of the moments: which, and its recordings' part.
+    std::optional<AnchorSandwich> anchor_;
 };
 
 extern template class RoundSolver<kRgbBlock>;

@@ -45,14 +45,13 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
 }
 
 template <int P>
-Eigen::MatrixXd anchorScores(Objective<P>& objective, const std::vector<double>& y,
-                             const Eigen::MatrixXd& fitted, bool cross, bool recordingsOnly) {
+Eigen::MatrixXd anchorRecordingScores(Objective<P>& objective, const std::vector<double>& y,
+                                      Eigen::Index size, bool cross) {
     const UsedPixels& prep = objective.pixels();
     const int sets = objective.setCount();
-    const Eigen::Index size = fitted.rows();
-    if (sets < 2) return recordingsOnly ? Eigen::MatrixXd::Zero(size, size) : fitted;
+    if (sets < 2) return Eigen::MatrixXd::Zero(size, size);
     // Only the pixels that see a material have a term (analyse).
-    const Eigen::MatrixXd recordings = objective.sumPixels(
+    return objective.sumPixels(
         prep.seeingMaterial, Eigen::MatrixXd(Eigen::MatrixXd::Zero(size, size)),
         [&](std::size_t i, Eigen::MatrixXd& sum, typename Objective<P>::Scratch& scratch) {
             const UsedPixel& u = prep.pixels[i];
@@ -67,10 +66,13 @@ Eigen::MatrixXd anchorScores(Objective<P>& objective, const std::vector<double>&
                 rho[k] = objective.lossWeight(r[k].squaredNorm());
             }
             anchorTerm<P>(scratch.jacobians, r, rho, sets, u.slotCount, cross, scratch.moment,
-                          scratch.momentJacobian, -1);
+                          nullptr, -1);
             sum(indices, indices) += scratch.moment * scratch.moment.transpose();
         });
-    if (recordingsOnly) return recordings;
+}
+
+Eigen::MatrixXd anchorScores(const Eigen::MatrixXd& fitted, const Eigen::MatrixXd& recordings) {
+    if (recordings.isZero(0)) return fitted;
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> excess(recordings - fitted);
     return fitted + excess.eigenvectors() * excess.eigenvalues().cwiseMax(0.0).asDiagonal() *
                         excess.eigenvectors().transpose();
@@ -117,11 +119,12 @@ double precision(const ParameterState<P>& params,
 template Eigen::MatrixXd scores<kRgbBlock>(Objective<kRgbBlock>&, const Linearization<kRgbBlock>&,
                                            const Instruments<kRgbBlock>*, const Eigen::MatrixXd&,
                                            const std::vector<bool>&, double);
-template Eigen::MatrixXd anchorScores<kRgbBlock>(Objective<kRgbBlock>&, const std::vector<double>&,
-                                                 const Eigen::MatrixXd&, bool, bool);
-template Eigen::MatrixXd anchorScores<kGreyBlock>(Objective<kGreyBlock>&,
-                                                  const std::vector<double>&,
-                                                  const Eigen::MatrixXd&, bool, bool);
+template Eigen::MatrixXd anchorRecordingScores<kRgbBlock>(Objective<kRgbBlock>&,
+                                                          const std::vector<double>&, Eigen::Index,
+                                                          bool);
+template Eigen::MatrixXd anchorRecordingScores<kGreyBlock>(Objective<kGreyBlock>&,
+                                                           const std::vector<double>&, Eigen::Index,
+                                                           bool);
 template std::vector<std::vector<double>> naturalStd<kRgbBlock>(const Eigen::MatrixXd&,
                                                                 const Eigen::MatrixXd&,
                                                                 const std::vector<HeldParams>&);

@@ -19,18 +19,25 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
                        const Instruments<P>* instruments, const Eigen::MatrixXd& jacobian,
                        const std::vector<bool>& held, double secondSign = 1);
 
-// The same S for an anchor of the moment solve at y (estimators.cpp) from `fitted`, the sum of its
-// pixels' anchorTerm products as fitted (Analysis::crossScores, or leastSquaresScores where not
-// `cross`), and the recordings' part of those terms: the second set's part negated, in which the
-// image's noise cancels. Where a few pixels hold a parameter, as the pixels reflecting an
-// environment's sun hold ks, each pulls the estimate towards itself and its fitted term shrinks
-// (understating the variance several times); the recordings' part is in no fit and does not.
-// The result: `fitted` plus the recordings' sum along the directions where it is larger
-// (`recordingsOnly`: that sum alone; with one set, `fitted` and 0).
+// An anchor of the moment solve (estimators.cpp): cross products' or (not `cross`) least squares'.
+// `recordings` is the sum of its pixels' anchorTerm products with the second set's part negated
+// (anchorRecordingScores), in which the image's noise cancels and which no fit absorbs.
+struct AnchorSandwich {
+    bool cross = false;
+    Eigen::MatrixXd recordings;
+};
+
+// An anchor's S at y: the recordings' part of its pixels' terms (`size` square; 0 with one set).
 template <int P>
-Eigen::MatrixXd anchorScores(Objective<P>& objective, const std::vector<double>& y,
-                             const Eigen::MatrixXd& fitted, bool cross,
-                             bool recordingsOnly = false);
+Eigen::MatrixXd anchorRecordingScores(Objective<P>& objective, const std::vector<double>& y,
+                                      Eigen::Index size, bool cross);
+
+// An anchor's S from `fitted`, the sum of its pixels' anchorTerm products as fitted
+// (Analysis::crossScores or leastSquaresScores), plus `recordings` along the directions where
+// that is larger. Where a few pixels hold a parameter, as the pixels reflecting an environment's
+// sun hold ks, each pulls the estimate towards itself and its fitted term shrinks (understating
+// the variance several times); the recordings' part is in no fit and does not.
+Eigen::MatrixXd anchorScores(const Eigen::MatrixXd& fitted, const Eigen::MatrixXd& recordings);
 
 // Standard errors per block of its natural parameters from the sandwich with these sums; 0 for
 // the `held` ones.
