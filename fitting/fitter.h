@@ -71,6 +71,11 @@ struct MaterialFit {
     // reports at least these (kd, ks and log n); its rounds keep them apart.
     Color3 kdImageStd = Color3::Zero(), ksImageStd = Color3::Zero();
     double logNImageStd = 0;
+    // The part of the image's noise that the standard errors above already hold (the sandwich
+    // reads the image's noise off the residuals, (1 - the recordings' share) of its variance):
+    // the result adds the image's beyond it (applyImageNoise).
+    Color3 kdCountedImageStd = Color3::Zero(), ksCountedImageStd = Color3::Zero();
+    double logNCountedImageStd = 0;
     // The standard error s of log n whose 3 reach as far sharper as the image's noise there
     // allows (sharperLogNStd; taken in rounds whose estimate may end the fit): n's upper reach is
     // at least n e^(3 s) (finishExponentUncertainty).

@@ -434,10 +434,16 @@ std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<do
 }
 
 void applyImageNoise(MaterialFit& fit) {
-    fit.kdStd = fit.kdStd.max(fit.kdImageStd);
-    fit.ksStd = fit.ksStd.max(fit.ksImageStd);
-    if (fit.logNImageStd > fit.logNStd) {
-        fit.logNStd = fit.logNImageStd;
+    // Independent of the recordings' noise: the variances add, less what was counted.
+    const auto add = [](double std, double image, double counted) {
+        return std::sqrt(std * std + std::max(0.0, image * image - counted * counted));
+    };
+    for (int c = 0; c < 3; ++c) {
+        fit.kdStd[c] = add(fit.kdStd[c], fit.kdImageStd[c], fit.kdCountedImageStd[c]);
+        fit.ksStd[c] = add(fit.ksStd[c], fit.ksImageStd[c], fit.ksCountedImageStd[c]);
+    }
+    if (fit.logNImageStd > fit.logNCountedImageStd) {
+        fit.logNStd = add(fit.logNStd, fit.logNImageStd, fit.logNCountedImageStd);
         fit.nStd = std::max(fit.nStd, fit.n * fit.logNStd);
     }
 }

@@ -76,7 +76,7 @@ std::vector<double> sharperLogNStd(Objective<P>& objective, const std::vector<do
                                    const RenderedNoise& rendered,
                                    const std::vector<double>& logNStd);
 
-// Raises `fit`'s standard errors to its image-noise ones (n's through log n).
+// Adds to `fit`'s variances the image's noise beyond what they counted (n's through log n).
 void applyImageNoise(MaterialFit& fit);
 
 }  // namespace phongfit

@@ -625,6 +625,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     if (result.stopReason == "precision" &&
         !meetsPrecision(result.materials, options.precision, PrecisionOf::ImageNoise))
         result.stopReason = "noise floor";
+    const std::vector<MaterialFit> withoutImageNoise = result.materials;
     for (MaterialFit& m : result.materials) applyImageNoise(m);
     for (MaterialFit& m : result.materials) finishExponentUncertainty(m);
     if (!exact) {
@@ -635,13 +636,18 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
             result.stopReason = "unresolved";
         }
     }
-    // The last round met the precision, but the standard errors reported are wider: the rounds'
-    // estimates scatter by more (a move between rounds, or recordings noisier than their round's
-    // standard errors said). The precision asked for is not what the fit can claim.
+    // The last round met the precision, but the standard errors reported are wider. Where only
+    // the image's noise added to them makes them so, the noise floor stopped the fit. Otherwise
+    // the rounds' estimates scatter by more (a move between rounds, or recordings noisier than
+    // their round's standard errors said): the precision asked for is not what the fit can claim.
     if (result.stopReason == "precision" &&
         !meetsPrecision(result.materials, options.precision, PrecisionOf::Reported)) {
-        result.converged = false;
-        result.stopReason = "rounds disagree";
+        if (meetsPrecision(withoutImageNoise, options.precision, PrecisionOf::Reported)) {
+            result.stopReason = "noise floor";
+        } else {
+            result.converged = false;
+            result.stopReason = "rounds disagree";
+        }
     }
     result.timeSeconds = secondsSince(begin);
     result.residentAtStartBytes = residentAtStart;

@@ -64,5 +64,30 @@ TEST(ImageNoise, RecordingsNoisierThanTheirPathsKeepTheProductsReading) {
 
 TEST(ImageNoise, NoPixelsNoNoise) { EXPECT_EQ(noiseScale({}), 0); }
 
+// The image's noise and the recordings' are independent, and their variances add. The round's
+// sandwich read part of the image's off its residuals (the counted part): only the rest is added.
+TEST(ImageNoise, TheImagesNoiseBeyondWhatTheRoundCountedAddsInQuadrature) {
+    MaterialFit fit;
+    fit.kd = fit.ks = Color3::Constant(0.4);
+    fit.kdStd = fit.ksStd = Color3::Constant(0.003);
+    fit.kdImageStd = Color3(0.004, 0.001, 0.004);
+    fit.kdCountedImageStd = Color3(0, 0, 0.002);
+    fit.ksImageStd = Color3::Constant(0.002);
+    fit.ksCountedImageStd = Color3::Constant(0.005);
+    fit.n = 100;
+    fit.logNStd = 0.1;
+    fit.nStd = 10;
+    fit.logNImageStd = 0.2;
+    fit.logNCountedImageStd = 0.1;
+    applyImageNoise(fit);
+    EXPECT_DOUBLE_EQ(fit.kdStd[0], std::sqrt(9e-6 + 16e-6));
+    EXPECT_DOUBLE_EQ(fit.kdStd[1], std::sqrt(9e-6 + 1e-6));
+    EXPECT_DOUBLE_EQ(fit.kdStd[2], std::sqrt(9e-6 + 16e-6 - 4e-6));
+    // All of the image's noise counted already: nothing added.
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(fit.ksStd[c], 0.003) << c;
+    EXPECT_DOUBLE_EQ(fit.logNStd, std::sqrt(0.01 + 0.04 - 0.01));
+    EXPECT_DOUBLE_EQ(fit.nStd, 100 * fit.logNStd);
+}
+
 }  // namespace
 }  // namespace phongfit
