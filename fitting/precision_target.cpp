@@ -22,7 +22,7 @@ std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const L
     const std::vector<std::vector<double>> all = naturalStd<P>(
         jacobian,
         anchor == nullptr
-            ? scores(objective, at, instruments, jacobian, flags, 1)
+            ? analysis.scores
             : anchorScores(anchor->cross ? analysis.crossScores : analysis.leastSquaresScores,
                            anchor->recordings),
         held);

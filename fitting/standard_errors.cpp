@@ -3,13 +3,26 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <span>
 
 #include "analysis.h"
 #include "convergence.h"
 #include "uncertainty.h"
 
 namespace phongfit {
+
+namespace {
+
+// The indices of pixel `u`'s material slots' parameters in the sums' matrices, into `indices`.
+template <int P>
+const std::vector<Eigen::Index>& slotIndices(const UsedPixels& prep, const UsedPixel& u,
+                                             std::vector<Eigen::Index>& indices) {
+    indices.clear();
+    for (std::uint32_t s : prep.slotsOf(u))
+        for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
+    return indices;
+}
+
+}  // namespace
 
 template <int P>
 Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
@@ -23,11 +36,7 @@ Eigen::MatrixXd scores(Objective<P>& objective, const Linearization<P>& at,
         prep.pixels.size(), Eigen::MatrixXd(Eigen::MatrixXd::Zero(size, size)),
         [&](std::size_t i, Eigen::MatrixXd& sum, typename Objective<P>::Scratch& scratch) {
             const UsedPixel& u = prep.pixels[i];
-            const std::span<const std::uint32_t> slots = prep.slotsOf(u);
-            std::vector<Eigen::Index>& indices = scratch.indices;
-            indices.clear();
-            for (std::uint32_t s : slots)
-                for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
+            const std::vector<Eigen::Index>& indices = slotIndices<P>(prep, u, scratch.indices);
             // A pixel that sees no material does not pull on the estimate. Its Jacobians at `at`
             // are replayed (Linearization does not keep them).
             const bool replay = u.seesMaterial || instruments == nullptr;
@@ -55,10 +64,7 @@ Eigen::MatrixXd anchorRecordingScores(Objective<P>& objective, const std::vector
         prep.seeingMaterial, Eigen::MatrixXd(Eigen::MatrixXd::Zero(size, size)),
         [&](std::size_t i, Eigen::MatrixXd& sum, typename Objective<P>::Scratch& scratch) {
             const UsedPixel& u = prep.pixels[i];
-            std::vector<Eigen::Index>& indices = scratch.indices;
-            indices.clear();
-            for (std::uint32_t s : prep.slotsOf(u))
-                for (int k = 0; k < P; ++k) indices.push_back(Eigen::Index(s) * P + k);
+            const std::vector<Eigen::Index>& indices = slotIndices<P>(prep, u, scratch.indices);
             Eigen::Vector3d r[2];
             double rho[2] = {1, 1};
             for (int k = 0; k < sets; ++k) {
