@@ -39,16 +39,27 @@ bool withinTolerance(const std::vector<Eigen::Matrix<double, P, 1>>& before,
     return true;
 }
 
+// The part of standard errors `std` (one block's) that is the recordings' own noise
+// (`recordings`: std sqrt(share)) or the image's (std sqrt(1 - share)), by the recordings' share of
+// each variance `pathShare` (RoundOutcome's; where it has none, all of it is the image's).
+inline std::vector<double> noisePart(std::vector<double> std, const std::vector<double>& pathShare,
+                                     bool recordings) {
+    for (std::size_t i = 0; i < std.size() && i < pathShare.size(); ++i) {
+        const double share = std::clamp(pathShare[i], 0.0, 1.0);
+        std[i] *= std::sqrt(recordings ? share : 1 - share);
+    }
+    return std;
+}
+
 // Per block and parameter, the part of a round's standard error `naturalStd` that is its
 // recordings' own noise (`pathShare`, RoundOutcome's); empty without a share.
 inline std::vector<std::vector<double>> pathNoise(
     const std::vector<std::vector<double>>& naturalStd,
     const std::vector<std::vector<double>>& pathShare) {
     if (pathShare.size() != naturalStd.size()) return {};
-    std::vector<std::vector<double>> noise = naturalStd;
-    for (std::size_t b = 0; b < noise.size(); ++b)
-        for (std::size_t i = 0; i < noise[b].size() && i < pathShare[b].size(); ++i)
-            noise[b][i] *= std::sqrt(std::clamp(pathShare[b][i], 0.0, 1.0));
+    std::vector<std::vector<double>> noise;
+    for (std::size_t b = 0; b < naturalStd.size(); ++b)
+        noise.push_back(noisePart(naturalStd[b], pathShare[b], true));
     return noise;
 }
 

@@ -140,10 +140,7 @@ void adoptPool(const PooledRounds<P>& pool, ParameterState<P>& params, RoundOutc
         fit.ksImageStd = image.ksImageStd;
         fit.logNImageStd = image.logNImageStd;
         fit.logNSharperImageStd = image.logNSharperImageStd;
-        countImageNoise(params, m, out.naturalStd[std::size_t(m)],
-                        std::size_t(m) < out.pathShare.size() ? out.pathShare[std::size_t(m)]
-                                                              : std::vector<double>{},
-                        fit);
+        countImageNoise(params, m, out, fit);
         fit.unconstrained = out.materials[std::size_t(m)].unconstrained;
         out.materials[std::size_t(m)] = fit;
     }

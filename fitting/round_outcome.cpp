@@ -108,23 +108,22 @@ ExposureFit exposureFit(const ParameterState<P>& params, const std::vector<doubl
 }
 
 template <int P>
-void countImageNoise(const ParameterState<P>& params, int m, const std::vector<double>& stdNatural,
-                     const std::vector<double>& pathShare, MaterialFit& fit) {
-    std::vector<double> counted = stdNatural;
-    for (std::size_t i = 0; i < counted.size() && i < pathShare.size(); ++i)
-        counted[i] *= std::sqrt(1 - std::clamp(pathShare[i], 0.0, 1.0));
-    const MaterialFit image = materialFit(params, m, counted);
+void countImageNoise(const ParameterState<P>& params, int m, const RoundOutcome& out,
+                     MaterialFit& fit) {
+    const std::size_t b = std::size_t(m);
+    const MaterialFit image = materialFit(
+        params, m,
+        noisePart(out.naturalStd[b],
+                  b < out.pathShare.size() ? out.pathShare[b] : std::vector<double>{}, false));
     fit.kdCountedImageStd = image.kdStd;
     fit.ksCountedImageStd = image.ksStd;
     fit.logNCountedImageStd = image.logNStd;
 }
 
-template void countImageNoise<kRgbBlock>(const ParameterState<kRgbBlock>&, int,
-                                         const std::vector<double>&, const std::vector<double>&,
+template void countImageNoise<kRgbBlock>(const ParameterState<kRgbBlock>&, int, const RoundOutcome&,
                                          MaterialFit&);
 template void countImageNoise<kGreyBlock>(const ParameterState<kGreyBlock>&, int,
-                                          const std::vector<double>&, const std::vector<double>&,
-                                          MaterialFit&);
+                                          const RoundOutcome&, MaterialFit&);
 template MaterialFit materialFit<kRgbBlock>(const ParameterState<kRgbBlock>&, int,
                                             const std::vector<double>&);
 template MaterialFit materialFit<kGreyBlock>(const ParameterState<kGreyBlock>&, int,

@@ -51,12 +51,12 @@ bool lobeHoldsExponent(const MaterialFit& fit);
 // where the lobe is sharper).
 void finishExponentUncertainty(MaterialFit& fit);
 
-// Sets `fit`'s counted image noise (MaterialFit::kdCountedImageStd, ...) from its block's natural
-// standard errors `stdNatural` and the recordings' share of their variance `pathShare`
-// (recordingShare; empty: none known, all of it counted).
+// Sets `fit`'s counted image noise (MaterialFit::kdCountedImageStd, ...): the image's part
+// (noisePart) of material block `m`'s standard errors in `out` (naturalStd; where out has no
+// pathShare for it, all of them).
 template <int P>
-void countImageNoise(const ParameterState<P>& params, int m, const std::vector<double>& stdNatural,
-                     const std::vector<double>& pathShare, MaterialFit& fit);
+void countImageNoise(const ParameterState<P>& params, int m, const RoundOutcome& out,
+                     MaterialFit& fit);
 
 // Material block `m` at `params`' point, with standard errors `stdNatural` (its natural ones)
 // and the parameters it holds named unconstrained.

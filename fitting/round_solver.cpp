@@ -119,8 +119,7 @@ void RoundSolver<P>::solveHolding(RoundOutcome& out, const FreeExponents* free) 
         fit.kdImageStd = image.kdStd;
         fit.ksImageStd = image.ksStd;
         fit.logNImageStd = image.logNStd;
-        countImageNoise(params_, m, out.naturalStd[m],
-                        out.pathShare.empty() ? std::vector<double>{} : out.pathShare[m], fit);
+        countImageNoise(params_, m, out, fit);
     }
     const ExposureBlock& exposure = params_.exposure();
     if (exposure.fitted()) out.exposure = exposureFit(params_, out.naturalStd[exposure.slot()]);

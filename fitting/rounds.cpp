@@ -625,7 +625,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     if (result.stopReason == "precision" &&
         !meetsPrecision(result.materials, options.precision, PrecisionOf::ImageNoise))
         result.stopReason = "noise floor";
-    const std::vector<MaterialFit> withoutImageNoise = result.materials;
+    const bool preciseWithoutImageNoise =
+        meetsPrecision(result.materials, options.precision, PrecisionOf::Reported);
     for (MaterialFit& m : result.materials) applyImageNoise(m);
     for (MaterialFit& m : result.materials) finishExponentUncertainty(m);
     if (!exact) {
@@ -642,7 +643,7 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
     // their round's standard errors said): the precision asked for is not what the fit can claim.
     if (result.stopReason == "precision" &&
         !meetsPrecision(result.materials, options.precision, PrecisionOf::Reported)) {
-        if (meetsPrecision(withoutImageNoise, options.precision, PrecisionOf::Reported)) {
+        if (preciseWithoutImageNoise) {
             result.stopReason = "noise floor";
         } else {
             result.converged = false;
