@@ -41,7 +41,7 @@ bool withinTolerance(const std::vector<Eigen::Matrix<double, P, 1>>& before,
 
 // The part of standard errors `std` (one block's) that is the recordings' own noise
 // (`recordings`: std sqrt(share)) or the image's (std sqrt(1 - share)), by the recordings' share of
-// each variance `pathShare` (RoundOutcome's; where it has none, all of it is the image's).
+// each variance `pathShare` (RoundOutcome's). A parameter with no share is returned whole.
 inline std::vector<double> noisePart(std::vector<double> std, const std::vector<double>& pathShare,
                                      bool recordings) {
     for (std::size_t i = 0; i < std.size() && i < pathShare.size(); ++i) {
