@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "convergence.h"
+
 namespace phongfit {
 
 std::vector<int> findUnconstrained(const Eigen::MatrixXd& information, double residualCount,
@@ -44,6 +46,11 @@ bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksSt
     for (std::size_t g = 0; g < ks.size(); ++g)
         if (ks[g] > 0 && ks[g] > significance * ksStd[g]) return true;
     return false;
+}
+
+bool lobeConfirmed(const std::vector<double>& ks, const std::vector<double>& ksStd) {
+    return std::any_of(ks.begin(), ks.end(), [](double k) { return k >= kReflectanceFloor; }) &&
+           lobeDetected(ks, ksStd, kLobeConfirmation);
 }
 
 }  // namespace phongfit

@@ -39,4 +39,8 @@ std::vector<int> findUnconstrained(const Eigen::MatrixXd& information, double re
 bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd,
                   double significance = kLobeSignificance);
 
+// Whether the images show a lobe: some group's ks at least kReflectanceFloor and kLobeConfirmation
+// standard errors above 0.
+bool lobeConfirmed(const std::vector<double>& ks, const std::vector<double>& ksStd);
+
 }  // namespace phongfit

@@ -40,7 +40,7 @@ bool preciseEnoughToPool(const PooledRounds<P>& pool) {
             const std::size_t j = std::size_t(i);
             if (pool.held[b * P + j]) continue;
             const double std = std::sqrt(pool.pathVariance[b][j] + pool.imageVariance[b][j]);
-            if (!(std <= kPoolableStd * precisionScale<P>(i, pool.estimate[b][i]))) return false;
+            if (!(std <= kPoolableStd * precisionScale<P>(i, pool.estimate[b]))) return false;
         }
     return true;
 }

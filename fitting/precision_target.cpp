@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "identifiability.h"
+#include "round_outcome.h"
 #include "standard_errors.h"
 
 namespace phongfit {
@@ -38,14 +40,34 @@ std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const L
     return share;
 }
 
+template <int P>
+std::vector<bool> showsNoLobe(const ParameterState<P>& params,
+                              const std::vector<std::vector<double>>& naturalStd) {
+    using L = BlockLayout<P>;
+    std::vector<bool> noLobe;
+    for (int s = 0; s < params.materialCount(); ++s) {
+        const typename ParameterState<P>::NaturalVector y = params.natural(s);
+        const HeldParams& held = params.held(s);
+        std::vector<double> ks, ksStd;
+        for (int g = 0; g < L::kGroups; ++g) {
+            if (held.ks[std::size_t(g)]) continue;
+            ks.push_back(y[L::specular(g)]);
+            ksStd.push_back(naturalStd[std::size_t(s)][std::size_t(L::specular(g))]);
+        }
+        noLobe.push_back(held.n && !lobeConfirmed(ks, ksStd));
+    }
+    return noLobe;
+}
+
 bool meetsPrecision(const std::vector<MaterialFit>& materials, double target, PrecisionOf which) {
     const bool reported = which == PrecisionOf::Reported;
     for (const MaterialFit& m : materials) {
         const Color3& kd = reported ? m.kdStd : m.kdImageStd;
         const Color3& ks = reported ? m.ksStd : m.ksImageStd;
+        const bool noLobe = noLobeSeen(m);
         for (int c = 0; c < 3; ++c)
             if (kd[c] > target * reflectancePrecisionScale(m.kd[c]) ||
-                ks[c] > target * reflectancePrecisionScale(m.ks[c]))
+                ks[c] > target * reflectancePrecisionScale(noLobe ? m.kd[c] + m.ks[c] : m.ks[c]))
                 return false;
         const double logN = reported ? m.logNStd : m.logNImageStd;
         if (logN > target && !m.isUnconstrained("n")) return false;
@@ -62,11 +84,13 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
     const double goal = target * target;
     bool allMet = true, allUnmetAtFloor = true;
     const std::vector<bool> held = params.heldFlags();
+    const std::vector<bool> noLobe = showsNoLobe(params, naturalStd);
     for (int s = 0; s < params.materialCount(); ++s) {
         const typename ParameterState<P>::NaturalVector y = params.natural(s);
         for (int i = 0; i < P; ++i) {
             if (held[std::size_t(s * P + i)]) continue;
-            const double variance = std::pow(naturalStd[s][i] / precisionScale<P>(i, y[i]), 2);
+            const double variance =
+                std::pow(naturalStd[s][i] / precisionScale<P>(i, y, noLobe[std::size_t(s)]), 2);
             if (variance <= goal) continue;
             allMet = false;
             const double share = std::clamp(pathShare[s][i], 0.0, 1.0);
@@ -91,13 +115,16 @@ PrecisionPlan planPrecision(const ParameterState<P>& params,
 
 template <int P>
 bool movedPastTarget(const ParameterState<P>& params,
+                     const std::vector<std::vector<double>>& naturalStd,
                      const std::vector<Eigen::Matrix<double, P, 1>>& before,
                      const std::vector<Eigen::Matrix<double, P, 1>>& after, double target) {
     const std::vector<bool> held = params.heldFlags();
+    const std::vector<bool> noLobe = showsNoLobe(params, naturalStd);
     for (std::size_t s = 0; s < before.size(); ++s)
         for (int i = 0; i < P; ++i)
             if (!held[s * P + std::size_t(i)] &&
-                std::abs(after[s][i] - before[s][i]) > target * precisionScale<P>(i, before[s][i]))
+                std::abs(after[s][i] - before[s][i]) >
+                    target * precisionScale<P>(i, before[s], s < noLobe.size() && noLobe[s]))
                 return true;
     return false;
 }
@@ -117,11 +144,17 @@ template PrecisionPlan planPrecision<kGreyBlock>(const ParameterState<kGreyBlock
                                                  const std::vector<std::vector<double>>&, double,
                                                  double);
 
+template std::vector<bool> showsNoLobe<kRgbBlock>(const ParameterState<kRgbBlock>&,
+                                                  const std::vector<std::vector<double>>&);
+template std::vector<bool> showsNoLobe<kGreyBlock>(const ParameterState<kGreyBlock>&,
+                                                   const std::vector<std::vector<double>>&);
 template bool movedPastTarget<kRgbBlock>(const ParameterState<kRgbBlock>&,
+                                         const std::vector<std::vector<double>>&,
                                          const std::vector<Eigen::Matrix<double, kRgbBlock, 1>>&,
                                          const std::vector<Eigen::Matrix<double, kRgbBlock, 1>>&,
                                          double);
 template bool movedPastTarget<kGreyBlock>(const ParameterState<kGreyBlock>&,
+                                          const std::vector<std::vector<double>>&,
                                           const std::vector<Eigen::Matrix<double, kGreyBlock, 1>>&,
                                           const std::vector<Eigen::Matrix<double, kGreyBlock, 1>>&,
                                           double);

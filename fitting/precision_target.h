@@ -35,10 +35,16 @@ inline double reflectancePrecisionScale(double value) {
 }
 
 // What a relative precision is taken of: kd and ks max(value, kPrecisionFloor), log n 1 (`i`, a
-// block's natural coordinate; `value`, its value).
+// natural coordinate of the block `y`). The ks of a material that shows no lobe (`noLobe`: n held,
+// ks confirming none) is a lobe's at an exponent the images do not determine: it is asked how
+// much of its group's albedo a lobe could hide, max(kd + ks, kPrecisionFloor)
+// (docs/design/fitter.md, "The ks of no lobe").
 template <int P>
-double precisionScale(int i, double value) {
-    return i == BlockLayout<P>::kLogN ? 1.0 : reflectancePrecisionScale(value);
+double precisionScale(int i, const Eigen::Matrix<double, P, 1>& y, bool noLobe = false) {
+    using L = BlockLayout<P>;
+    if (i == L::kLogN) return 1.0;
+    if (noLobe && i >= L::specular(0)) return reflectancePrecisionScale(y[i - L::kGroups] + y[i]);
+    return reflectancePrecisionScale(y[i]);
 }
 
 // Per block, the share of each parameter's variance that is the recordings' own noise (the rest is
@@ -55,6 +61,12 @@ std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const L
                                                 const std::vector<HeldParams>& held,
                                                 const AnchorSandwich* anchor);
 
+// Per material block, whether it shows no lobe: n held, and no free ks group confirms a lobe
+// (lobeConfirmed) by the round's `naturalStd`.
+template <int P>
+std::vector<bool> showsNoLobe(const ParameterState<P>& params,
+                              const std::vector<std::vector<double>>& naturalStd);
+
 struct PrecisionPlan {
     bool met = false;       // every free parameter's relative standard error is at most the target
     bool floor = false;     // not met, and more paths cannot get there: the image's own noise
@@ -64,9 +76,10 @@ struct PrecisionPlan {
 // From a round's standard errors `naturalStd` and the share of each variance that is the
 // recordings' own noise, `pathShare` (per material block, natural coordinates; the exposure block,
 // if any, is left out), for relative standard error `target` (kd and ks: std / max(value,
-// kPrecisionFloor); n: std of log n). A parameter whose variance from the image alone exceeds
-// target^2 is at the noise floor; the others need paths m times as many, m = path variance /
-// (target^2 - image variance). `pathFactor`: the round's paths relative to the first round's.
+// kPrecisionFloor); n: std of log n; as precisionScale, a material's ks by showsNoLobe). A
+// parameter whose variance from the image alone exceeds target^2 is at the noise floor; the others
+// need paths m times as many, m = path variance / (target^2 - image variance). `pathFactor`: the
+// round's paths relative to the first round's.
 template <int P>
 PrecisionPlan planPrecision(const ParameterState<P>& params,
                             const std::vector<std::vector<double>>& naturalStd,
@@ -79,14 +92,17 @@ enum class PrecisionOf { Reported, ImageNoise };
 
 // Whether `which` standard errors leave every parameter of `materials` as precise as `target`
 // asks, as planPrecision measures it (kd and ks relative to reflectancePrecisionScale, n through
-// log n). An n listed unconstrained is not asked.
+// log n). An n listed unconstrained is not asked; the ks of a fit that shows no lobe (noLobeSeen)
+// is taken relative to max(kd + ks, kPrecisionFloor), as precisionScale.
 bool meetsPrecision(const std::vector<MaterialFit>& materials, double target, PrecisionOf which);
 
 // Whether some free parameter moved from `before` to `after` (natural coordinates, per block) by
-// more than `target` asks of its standard error (kd, ks: target * max(value, kPrecisionFloor);
-// log n: target): a move that more paths could make smaller matters to the target.
+// more than `target` asks of its standard error (target times its precisionScale at `before`, a
+// material's ks by showsNoLobe with the round's `naturalStd`): a move that more paths could make
+// smaller matters to the target.
 template <int P>
 bool movedPastTarget(const ParameterState<P>& params,
+                     const std::vector<std::vector<double>>& naturalStd,
                      const std::vector<Eigen::Matrix<double, P, 1>>& before,
                      const std::vector<Eigen::Matrix<double, P, 1>>& after, double target);
 

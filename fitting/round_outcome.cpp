@@ -49,12 +49,14 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
     return fit;
 }
 
-bool lobeHoldsExponent(const MaterialFit& fit) {
-    if (fit.nStd < fit.n) return true;
-    const std::vector<double> ks(fit.ks.begin(), fit.ks.end()),
-        ksStd(fit.ksStd.begin(), fit.ksStd.end());
-    return fit.ks.maxCoeff() >= kReflectanceFloor && lobeDetected(ks, ksStd, kLobeConfirmation);
+bool lobeConfirmed(const MaterialFit& fit) {
+    return lobeConfirmed(std::vector<double>(fit.ks.begin(), fit.ks.end()),
+                         std::vector<double>(fit.ksStd.begin(), fit.ksStd.end()));
 }
+
+bool lobeHoldsExponent(const MaterialFit& fit) { return fit.nStd < fit.n || lobeConfirmed(fit); }
+
+bool noLobeSeen(const MaterialFit& fit) { return fit.isUnconstrained("n") && !lobeConfirmed(fit); }
 
 bool exponentListedForNoLobe(const MaterialFit& fit) {
     return fit.isUnconstrained("n") && fit.nStd > 0;

@@ -34,12 +34,19 @@ struct RoundOutcome {
 // this of its logNStd; its rounds keep n s.
 double logNormalStd(double n, double s);
 
+// Whether the fit's ks shows a lobe (lobeConfirmed).
+bool lobeConfirmed(const MaterialFit& fit);
+
 // Whether a lobe holds the fit's n: n resolved (nStd < n), or a lobe confirmed (some ks group at
 // least kReflectanceFloor and kLobeConfirmation standard errors above 0). An n neither holds is
 // listed unconstrained in the result, wherever it went (1e6 for a sphere with no lobe under a
 // 40-degree light); not in the rounds, whose logic (probes, convergence) takes "unconstrained" as
 // held.
 bool lobeHoldsExponent(const MaterialFit& fit);
+
+// Whether the fit shows no lobe: n unconstrained and ks confirming none. Its ks is then a lobe's
+// at an n the images do not determine, bounded by its standard error.
+bool noLobeSeen(const MaterialFit& fit);
 
 // A fit's result, n's uncertainty as far as its standard errors reach: nStd at least
 // logNormalStd's, and n listed unconstrained where no lobe holds it. An n a lobe holds has an nStd

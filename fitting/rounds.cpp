@@ -115,12 +115,7 @@ double unsettledGrowth(const FitResult& result, const FitOptions& options, doubl
 // where every exponent fits alike a broader one can win by noise and unsettle the rounds.
 std::vector<bool> lobesToScan(const std::vector<MaterialFit>& fits) {
     std::vector<bool> scan;
-    for (const MaterialFit& m : fits) {
-        const std::vector<double> ks(m.ks.begin(), m.ks.end()),
-            ksStd(m.ksStd.begin(), m.ksStd.end());
-        scan.push_back(!m.isUnconstrained("n") && m.ks.maxCoeff() >= kReflectanceFloor &&
-                       lobeDetected(ks, ksStd, kLobeConfirmation));
-    }
+    for (const MaterialFit& m : fits) scan.push_back(!m.isUnconstrained("n") && lobeConfirmed(m));
     return scan;
 }
 
@@ -413,7 +408,8 @@ FitResult runRounds(const std::vector<Observation>& observations, const RecordAl
              nearPool);
         // A round that did not settle by more than the precision target tolerates.
         const bool movedPast =
-            options.precision > 0 && movedPastTarget<P>(params, before, after, options.precision);
+            options.precision > 0 &&
+            movedPastTarget<P>(params, out.naturalStd, before, after, options.precision);
         // A probe that did not come back, with no round after it, leaves the converged estimate
         // standing, unvouched.
         const bool probeLeft =

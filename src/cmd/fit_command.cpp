@@ -367,9 +367,10 @@ void addFitCommand(CLI::App& app) {
     scene
         ->add_option("--precision", a->precision,
                      "target relative standard error of every free parameter (kd, ks: of "
-                     "max(value, 0.1); n: of n): once the estimate stops moving, rounds record "
-                     "more paths where they inform it until every parameter is this precise or the "
-                     "images' own noise stands in the way (0: no target)")
+                     "max(value, 0.1), a ks showing no lobe of max(kd + ks, 0.1); n: of n): once "
+                     "the estimate stops moving, rounds record more paths where they inform it "
+                     "until every parameter is this precise or the images' own noise stands in "
+                     "the way (0: no target)")
         ->check(CLI::Range(0.0, 0.5))
         ->capture_default_str();
     scene
