@@ -49,6 +49,23 @@ bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
 }
 
 template <int P>
+SpecularGroups freeSpecular(const ParameterState<P>& params, int s,
+                            const std::vector<std::vector<double>>& naturalStd,
+                            const std::vector<std::vector<double>>* ksStdFloor) {
+    using L = BlockLayout<P>;
+    const Eigen::Matrix<double, P, 1> y = params.natural(s);
+    SpecularGroups groups;
+    for (int g = 0; g < L::kGroups; ++g) {
+        if (params.held(s).ks[std::size_t(g)]) continue;
+        const double floor = ksStdFloor ? (*ksStdFloor)[std::size_t(s)][std::size_t(g)] : 0;
+        groups.ks.push_back(y[L::specular(g)]);
+        groups.std.push_back(
+            std::max(naturalStd[std::size_t(s)][std::size_t(L::specular(g))], floor));
+    }
+    return groups;
+}
+
+template <int P>
 bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, double significance,
                          const std::vector<std::vector<double>>* ksStdFloor) {
     using L = BlockLayout<P>;
@@ -66,14 +83,8 @@ bool holdUnseenExponents(const Analysis& analysis, ParameterState<P>& params, do
             indices.push_back(s * P + L::kLogN);
             continue;
         }
-        std::vector<double> ks, ksStd;
-        for (int g = 0; g < L::kGroups; ++g) {
-            if (held.ks[g]) continue;
-            ks.push_back(y[L::specular(g)]);
-            const double floor = ksStdFloor ? (*ksStdFloor)[std::size_t(s)][std::size_t(g)] : 0;
-            ksStd.push_back(std::max(stdNatural[s][L::specular(g)], floor));
-        }
-        if (lobeDetected(ks, ksStd, significance)) continue;
+        const SpecularGroups groups = freeSpecular(params, s, stdNatural, ksStdFloor);
+        if (lobeDetected(groups.ks, groups.std, significance)) continue;
         const bool broad = y[L::kLogN] < std::log(params.start(s).n);
         (broad ? broader : indices).push_back(s * P + L::kLogN);
     }
@@ -85,6 +96,12 @@ template bool holdUnconstrained<kRgbBlock>(const Analysis&, const UsedPixels&,
                                            ParameterState<kRgbBlock>&);
 template bool holdUnconstrained<kGreyBlock>(const Analysis&, const UsedPixels&,
                                             ParameterState<kGreyBlock>&);
+template SpecularGroups freeSpecular<kRgbBlock>(const ParameterState<kRgbBlock>&, int,
+                                                const std::vector<std::vector<double>>&,
+                                                const std::vector<std::vector<double>>*);
+template SpecularGroups freeSpecular<kGreyBlock>(const ParameterState<kGreyBlock>&, int,
+                                                 const std::vector<std::vector<double>>&,
+                                                 const std::vector<std::vector<double>>*);
 template bool holdUnseenExponents<kRgbBlock>(const Analysis&, ParameterState<kRgbBlock>&, double,
                                              const std::vector<std::vector<double>>*);
 template bool holdUnseenExponents<kGreyBlock>(const Analysis&, ParameterState<kGreyBlock>&, double,

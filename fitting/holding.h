@@ -17,6 +17,13 @@ template <int P>
 bool holdUnconstrained(const Analysis& analysis, const UsedPixels& pixels,
                        ParameterState<P>& params);
 
+// Material s's free ks groups, with their standard errors from `naturalStd` (per block, natural
+// coordinates), each at least `ksStdFloor`'s for its group when given.
+template <int P>
+SpecularGroups freeSpecular(const ParameterState<P>& params, int s,
+                            const std::vector<std::vector<double>>& naturalStd,
+                            const std::vector<std::vector<double>>* ksStdFloor = nullptr);
+
 // n only shapes the lobe: where no free ks of a material is `significance` standard errors above
 // 0 (lobeDetected), its n is held: at its start value, or where it is if that is broader than
 // the start (a broad lobe sent back to a sharp start gave its share of the shading to kd). The

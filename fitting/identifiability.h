@@ -35,6 +35,12 @@ inline constexpr double kSeenLobeCost = 25;
 std::vector<int> findUnconstrained(const Eigen::MatrixXd& information, double residualCount,
                                    double rmsObserved, const std::vector<bool>& held);
 
+// A material's free ks groups and their standard errors, as lobeDetected and lobeConfirmed read
+// them.
+struct SpecularGroups {
+    std::vector<double> ks, std;
+};
+
 // True when some group's ks exceeds `significance` standard errors (ks and ksStd per colour group).
 bool lobeDetected(const std::vector<double>& ks, const std::vector<double>& ksStd,
                   double significance = kLobeSignificance);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "holding.h"
 #include "identifiability.h"
 #include "round_outcome.h"
 #include "standard_errors.h"
@@ -43,18 +44,10 @@ std::vector<std::vector<double>> recordingShare(Objective<P>& objective, const L
 template <int P>
 std::vector<bool> showsNoLobe(const ParameterState<P>& params,
                               const std::vector<std::vector<double>>& naturalStd) {
-    using L = BlockLayout<P>;
     std::vector<bool> noLobe;
     for (int s = 0; s < params.materialCount(); ++s) {
-        const typename ParameterState<P>::NaturalVector y = params.natural(s);
-        const HeldParams& held = params.held(s);
-        std::vector<double> ks, ksStd;
-        for (int g = 0; g < L::kGroups; ++g) {
-            if (held.ks[std::size_t(g)]) continue;
-            ks.push_back(y[L::specular(g)]);
-            ksStd.push_back(naturalStd[std::size_t(s)][std::size_t(L::specular(g))]);
-        }
-        noLobe.push_back(held.n && !lobeConfirmed(ks, ksStd));
+        const SpecularGroups groups = freeSpecular(params, s, naturalStd);
+        noLobe.push_back(params.held(s).n && !lobeConfirmed(groups.ks, groups.std));
     }
     return noLobe;
 }

@@ -43,7 +43,10 @@ template <int P>
 double precisionScale(int i, const Eigen::Matrix<double, P, 1>& y, bool noLobe = false) {
     using L = BlockLayout<P>;
     if (i == L::kLogN) return 1.0;
-    if (noLobe && i >= L::specular(0)) return reflectancePrecisionScale(y[i - L::kGroups] + y[i]);
+    if (noLobe && i >= L::specular(0)) {
+        const int group = i - L::specular(0);
+        return reflectancePrecisionScale(y[L::diffuse(group)] + y[i]);
+    }
     return reflectancePrecisionScale(y[i]);
 }
 

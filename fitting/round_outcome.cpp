@@ -10,6 +10,10 @@
 
 namespace phongfit {
 
+namespace {
+constexpr const char* kChannel[3] = {"r", "g", "b"};
+}  // namespace
+
 template <int P>
 MaterialFit materialFit(const ParameterState<P>& params, int m,
                         const std::vector<double>& stdNatural) {
@@ -33,7 +37,6 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
         fit.n = std::clamp(start.n, kMinExponent, kMaxExponent);
     fit.logNStd = stdNatural[L::kLogN];
     fit.nStd = fit.n * fit.logNStd;
-    static constexpr const char* kChannel[3] = {"r", "g", "b"};
     for (const char* name : {"kd", "ks"}) {
         const bool diffuse = name[1] == 'd';
         const auto& flags = diffuse ? held.kd : held.ks;
@@ -50,8 +53,16 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
 }
 
 bool lobeConfirmed(const MaterialFit& fit) {
-    return lobeConfirmed(std::vector<double>(fit.ks.begin(), fit.ks.end()),
-                         std::vector<double>(fit.ksStd.begin(), fit.ksStd.end()));
+    // A held ks channel keeps its start with a standard error of 0: no evidence of a lobe, and
+    // left out as the rounds' test (showsNoLobe) leaves out held groups.
+    SpecularGroups free;
+    for (int c = 0; c < 3; ++c) {
+        if (fit.isUnconstrained("ks") || fit.isUnconstrained(fmt::format("ks.{}", kChannel[c])))
+            continue;
+        free.ks.push_back(fit.ks[c]);
+        free.std.push_back(fit.ksStd[c]);
+    }
+    return lobeConfirmed(free.ks, free.std);
 }
 
 bool lobeHoldsExponent(const MaterialFit& fit) { return fit.nStd < fit.n || lobeConfirmed(fit); }

@@ -34,7 +34,7 @@ struct RoundOutcome {
 // this of its logNStd; its rounds keep n s.
 double logNormalStd(double n, double s);
 
-// Whether the fit's ks shows a lobe (lobeConfirmed).
+// Whether the fit's ks shows a lobe (lobeConfirmed), from its channels not listed unconstrained.
 bool lobeConfirmed(const MaterialFit& fit);
 
 // Whether a lobe holds the fit's n: n resolved (nStd < n), or a lobe confirmed (some ks group at

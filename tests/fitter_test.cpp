@@ -498,6 +498,18 @@ TEST(Resolution, AnExponentNoLobeHoldsIsListedUnconstrainedWhereverItWent) {
     EXPECT_TRUE(lobeHoldsExponent(fit));
     fit.ksStd = Color3::Constant(0.017);  // 2.9 standard errors: not confirmed
     EXPECT_FALSE(lobeHoldsExponent(fit));
+    // A ks channel held at its start (no light reaches it) is reported with a standard error of 0:
+    // no evidence of a lobe, as in the rounds' test (showsNoLobe), which reads free groups only.
+    fit.ks = Color3(0.3, 0.002, 0.001);
+    fit.ksStd = Color3(0, 0.004, 0.004);
+    fit.unconstrained = {"ks.r"};
+    EXPECT_FALSE(lobeConfirmed(fit));
+    EXPECT_FALSE(lobeHoldsExponent(fit));
+    fit.unconstrained.push_back("n");
+    EXPECT_TRUE(noLobeSeen(fit));
+    fit.ks.y() = 0.02;  // 5 standard errors in a free channel
+    EXPECT_TRUE(lobeConfirmed(fit));
+    EXPECT_FALSE(noLobeSeen(fit));
 }
 
 TEST(Identifiability, FindsInvisibleAndCollinearParameters) {
