@@ -1359,6 +1359,62 @@ TEST(Fitter, AProbeThatCouldNotTellIsRecordedAgainWithThePathsToTell) {
     expectCovered(r.materials[0], kTruth);
 }
 
+// A probe that few paths pull broader is recorded again, from the same start, with the converged
+// round's paths (pulledBroader; found on the Cornell box under its area light, seed 81's round
+// trips, which no round trip reaches since session 86). The recordings here do not average their
+// noise down as the paths grow (as where few paths land in the lobe), so the converged round, at
+// 128 times the first round's paths, still has log n's standard error 0.10: a probe could tell its
+// lobe from the probe's start only with 13.5 times the first round's paths (more than
+// kMostProbePaths). The probe at half the first round's paths sees the lobe 2.5 times sharper than
+// the rounds do, and comes back broader than the converged n: 29.7 for 62.6, past what
+// probeReturned accepts. Recorded again at 128 times the paths, the probe comes back (58.8), and
+// the converged estimate stands.
+TEST(Fitter, AProbePulledBroaderByItsFewPathsIsRecordedAgainWithTheConvergedRoundsPaths) {
+    const SphereScene scene = threeLights();
+    const Observation obs = observe(makePaths(scene), {kTruth});
+    std::vector<std::pair<double, double>> recordedAt;  // (n, path factor) of each recording
+    const PathRecorder record = [&](int, const std::vector<PhongMaterial>& at, int recording,
+                                    const std::vector<float>&, double pathFactor) {
+        if (recording % 2 == 0) recordedAt.emplace_back(at[0].n, pathFactor);
+        // As in RoundsThatDoNotSettleRecordMorePaths, rounds below 4 times the first round's
+        // paths see the lobe 30% broader and sharper by turns: the paths grow.
+        PathSet ps =
+            flippedPaths(scene, recording, pathFactor < 4 && pathFactor != kProbePaths ? 0.3 : 0.0);
+        addRecordingNoise(ps, 5 + unsigned(recording), 2.0);
+        if (pathFactor == kProbePaths)
+            for (PathVertex& v : ps.vertices) v.logCos *= 2.5f;
+        return ps;
+    };
+    FitOptions options;
+    options.maxRounds = 10;
+    options.precision = 0.01;
+    const PhongMaterial start = material(Color3::Constant(0.3), Color3::Constant(0.2), 20);
+    const FitResult r = fitMaterials({obs}, record, {start}, options);
+    expectFinite(r);
+    std::size_t probe = 0;
+    while (probe < r.rounds.size() && !r.rounds[probe].probe) ++probe;
+    ASSERT_GT(probe, 0u);
+    ASSERT_LT(probe + 1, r.rounds.size()) << "no second probe: the case is not tried";
+    const FitRound &converged = r.rounds[probe - 1], &first = r.rounds[probe],
+                   &second = r.rounds[probe + 1];
+    ASSERT_EQ(converged.pooledRounds, 1);
+    EXPECT_GT(converged.materials[0].logNStd, 0.05);
+    EXPECT_EQ(first.pathFactor, kProbePaths);
+    EXPECT_LT(first.materials[0].n, converged.materials[0].n);
+    EXPECT_FALSE(probeReturned(converged.materials, first.materials));
+    EXPECT_TRUE(pulledBroader(converged.materials, first.materials, converged.pathFactor));
+    // The second probe: from the first's start, at the converged round's paths.
+    EXPECT_TRUE(second.probe);
+    EXPECT_EQ(second.pathFactor, converged.pathFactor);
+    ASSERT_EQ(recordedAt.size(), r.rounds.size());
+    EXPECT_EQ(recordedAt[probe + 1].first, recordedAt[probe].first);
+    EXPECT_GT(recordedAt[probe].first, 2 * converged.materials[0].n);
+    EXPECT_TRUE(probeReturned(converged.materials, second.materials));
+    EXPECT_EQ(r.rounds.size(), probe + 2);
+    EXPECT_EQ(r.materials[0].n, converged.materials[0].n);
+    expectCovered(r.materials[0], kTruth);
+}
+
 // Paths that grow average their noise down. A round recorded at a settled round's estimate with
 // more paths moves from it by both rounds' path noise, the larger part the settled round's; by its
 // own standard errors alone the move would not have settled and the paths would have grown again.
