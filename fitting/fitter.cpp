@@ -37,6 +37,10 @@ bool MaterialFit::isUnconstrained(const std::string& name) const {
     return std::find(unconstrained.begin(), unconstrained.end(), name) != unconstrained.end();
 }
 
+bool MaterialFit::channelUnconstrained(const std::string& name, int c) const {
+    return isUnconstrained(name) || isUnconstrained(name + '.' + "rgb"[c]);
+}
+
 bool MaterialFit::ksUnconstrained() const {
     return std::any_of(unconstrained.begin(), unconstrained.end(),
                        [](const std::string& name) { return name.starts_with("ks"); });

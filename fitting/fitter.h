@@ -87,6 +87,8 @@ struct MaterialFit {
     PhongMaterial material() const;
     // Whether `name` ("kd", "ks.g", "n") is listed in `unconstrained`.
     bool isUnconstrained(const std::string& name) const;
+    // Whether channel c (0-2) of `name` ("kd", "ks") is listed there, whole or by channel.
+    bool channelUnconstrained(const std::string& name, int c) const;
     // Whether ks, or one of its channels, is listed there.
     bool ksUnconstrained() const;
 };

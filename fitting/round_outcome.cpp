@@ -10,10 +10,6 @@
 
 namespace phongfit {
 
-namespace {
-constexpr const char* kChannel[3] = {"r", "g", "b"};
-}  // namespace
-
 template <int P>
 MaterialFit materialFit(const ParameterState<P>& params, int m,
                         const std::vector<double>& stdNatural) {
@@ -37,6 +33,7 @@ MaterialFit materialFit(const ParameterState<P>& params, int m,
         fit.n = std::clamp(start.n, kMinExponent, kMaxExponent);
     fit.logNStd = stdNatural[L::kLogN];
     fit.nStd = fit.n * fit.logNStd;
+    static constexpr const char* kChannel[3] = {"r", "g", "b"};
     for (const char* name : {"kd", "ks"}) {
         const bool diffuse = name[1] == 'd';
         const auto& flags = diffuse ? held.kd : held.ks;
@@ -57,8 +54,7 @@ bool lobeConfirmed(const MaterialFit& fit) {
     // left out as the rounds' test (showsNoLobe) leaves out held groups.
     SpecularGroups free;
     for (int c = 0; c < 3; ++c) {
-        if (fit.isUnconstrained("ks") || fit.isUnconstrained(fmt::format("ks.{}", kChannel[c])))
-            continue;
+        if (fit.channelUnconstrained("ks", c)) continue;
         free.ks.push_back(fit.ks[c]);
         free.std.push_back(fit.ksStd[c]);
     }
@@ -98,8 +94,7 @@ std::vector<std::string> unresolvedParameters(const MaterialFit& fit) {
         const Color3& value = diffuse ? fit.kd : fit.ks;
         const Color3& std = diffuse ? fit.kdStd : fit.ksStd;
         for (int c = 0; c < 3; ++c)
-            if (!fit.isUnconstrained(name) &&
-                !fit.isUnconstrained(fmt::format("{}.{}", name, "rgb"[c])) &&
+            if (!fit.channelUnconstrained(name, c) &&
                 std[c] >= std::max(value[c], kReflectanceFloor)) {
                 names.push_back(name);
                 break;

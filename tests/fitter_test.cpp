@@ -1304,6 +1304,13 @@ PathRecorder nearSightedRecorder(const SphereScene& scene, unsigned seed, double
         };
 }
 
+// The index of `r`'s first probe round, or the count of its rounds if none.
+std::size_t firstProbeRound(const FitResult& r) {
+    std::size_t probe = 0;
+    while (probe < r.rounds.size() && !r.rounds[probe].probe) ++probe;
+    return probe;
+}
+
 // A probe recorded where the recordings see little, at half the paths, did not come back: its n
 // 300 for 60, its lobe then held by confirmation (ks 0.14 +- 0.095). Its move from the sharper
 // lobe it was recorded at was within its noise, and the fit used to stop there, "converged", with
@@ -1316,8 +1323,7 @@ TEST(Fitter, AProbeThatDidNotComeBackSettlesNothing) {
         fitMaterials({obs}, nearSightedRecorder(scene, 1, 0.05, 1.0),
                      {material(Color3::Constant(0.3), Color3::Constant(0.3), 6000)}, FitOptions());
     expectFinite(r);
-    std::size_t probe = 0;
-    while (probe < r.rounds.size() && !r.rounds[probe].probe) ++probe;
+    const std::size_t probe = firstProbeRound(r);
     ASSERT_LT(probe, r.rounds.size()) << "no probe: the case is not tried";
     EXPECT_GT(r.rounds[probe].materials[0].n, 3 * kTruth.n);  // it did not come back
     EXPECT_GT(r.rounds.size(), probe + 1) << "the fit stopped at the probe";
@@ -1340,8 +1346,7 @@ TEST(Fitter, AProbeThatCouldNotTellIsRecordedAgainWithThePathsToTell) {
         fitMaterials({obs}, noisyRecorder(scene, 2, 1.4, true),
                      {material(Color3::Constant(0.3), Color3::Constant(0.2), 20)}, options);
     expectFinite(r);
-    std::size_t probe = 0;
-    while (probe < r.rounds.size() && !r.rounds[probe].probe) ++probe;
+    const std::size_t probe = firstProbeRound(r);
     ASSERT_LT(probe + 1, r.rounds.size()) << "no probe: the case is not tried";
     const FitRound &converged = r.rounds[probe - 1], &first = r.rounds[probe],
                    &second = r.rounds[probe + 1];
@@ -1372,10 +1377,10 @@ TEST(Fitter, AProbeThatCouldNotTellIsRecordedAgainWithThePathsToTell) {
 TEST(Fitter, AProbePulledBroaderByItsFewPathsIsRecordedAgainWithTheConvergedRoundsPaths) {
     const SphereScene scene = threeLights();
     const Observation obs = observe(makePaths(scene), {kTruth});
-    std::vector<std::pair<double, double>> recordedAt;  // (n, path factor) of each recording
+    std::vector<double> recordedAt;  // the n each round's recordings were made at
     const PathRecorder record = [&](int, const std::vector<PhongMaterial>& at, int recording,
                                     const std::vector<float>&, double pathFactor) {
-        if (recording % 2 == 0) recordedAt.emplace_back(at[0].n, pathFactor);
+        if (recording % 2 == 0) recordedAt.push_back(at[0].n);
         // As in RoundsThatDoNotSettleRecordMorePaths, rounds below 4 times the first round's
         // paths see the lobe 30% broader and sharper by turns: the paths grow.
         PathSet ps =
@@ -1391,8 +1396,7 @@ TEST(Fitter, AProbePulledBroaderByItsFewPathsIsRecordedAgainWithTheConvergedRoun
     const PhongMaterial start = material(Color3::Constant(0.3), Color3::Constant(0.2), 20);
     const FitResult r = fitMaterials({obs}, record, {start}, options);
     expectFinite(r);
-    std::size_t probe = 0;
-    while (probe < r.rounds.size() && !r.rounds[probe].probe) ++probe;
+    const std::size_t probe = firstProbeRound(r);
     ASSERT_GT(probe, 0u);
     ASSERT_LT(probe + 1, r.rounds.size()) << "no second probe: the case is not tried";
     const FitRound &converged = r.rounds[probe - 1], &first = r.rounds[probe],
@@ -1407,8 +1411,8 @@ TEST(Fitter, AProbePulledBroaderByItsFewPathsIsRecordedAgainWithTheConvergedRoun
     EXPECT_TRUE(second.probe);
     EXPECT_EQ(second.pathFactor, converged.pathFactor);
     ASSERT_EQ(recordedAt.size(), r.rounds.size());
-    EXPECT_EQ(recordedAt[probe + 1].first, recordedAt[probe].first);
-    EXPECT_GT(recordedAt[probe].first, 2 * converged.materials[0].n);
+    EXPECT_EQ(recordedAt[probe + 1], recordedAt[probe]);
+    EXPECT_GT(recordedAt[probe], 2 * converged.materials[0].n);
     EXPECT_TRUE(probeReturned(converged.materials, second.materials));
     EXPECT_EQ(r.rounds.size(), probe + 2);
     EXPECT_EQ(r.materials[0].n, converged.materials[0].n);
